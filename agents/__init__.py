@@ -1,0 +1,1 @@
+"""agents: SB3 training, imitation from optimiser trajectories, evaluation and comparison."""

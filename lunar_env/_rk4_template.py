@@ -1,0 +1,220 @@
+"""Model-generic source of the compiled RK4 integrator (see :mod:`lunar_env.integrators`).
+
+These functions are never called directly. :mod:`lunar_env.integrators` instantiates them once
+per dynamics model, binding the model's names below to that model's compiled functions, and
+compiles them with numba (``cache=True``). The integrator logic therefore exists once, and the
+per-model kernels run on scalar tuples (no per-step heap arrays), which is what makes them fast.
+
+Names bound per model: ``LOAD(row) -> state tuple``, ``DERIV(y, u, p) -> dy tuple``,
+``RADIUS(y)``, ``SPEED_RATE(y, dy)`` (= V_rel · dV_rel/dt, whose upward zero crossing is a
+minimum of the speed relative to the surface), ``MASS(y)``, ``UZERO`` (zero control tuple; the
+last control channel is the throttle).
+"""
+
+# ruff: noqa: F821  (LOAD, DERIV, RADIUS, SPEED_RATE, MASS, UZERO are bound per model)
+import numpy as np
+from numba import prange
+from numba.cpython.unsafe.tuple import tuple_setitem
+
+EVENT_NONE = 0
+EVENT_RADIUS = 1
+EVENT_SPEED_MIN = 2
+EVENT_FUEL = 3
+_ROOT_ITERATIONS = 80
+
+
+def control_at(breaks, coefs, i, k, t, burn):
+    """Control tuple of trajectory i at time t (piecewise polynomial; segment search from k)."""
+    n_seg = coefs.shape[1]
+    order = coefs.shape[3]
+    while k < n_seg - 1 and t >= breaks[i, k + 1]:
+        k += 1
+    tau = t - breaks[i, k]
+    u = UZERO
+    for j in range(len(u)):
+        acc = coefs[i, k, j, order - 1]
+        for q in range(order - 2, -1, -1):
+            acc = acc * tau + coefs[i, k, j, q]
+        u = tuple_setitem(u, j, acc)
+    last = len(u) - 1
+    u = tuple_setitem(u, last, u[last] * burn)
+    return u
+
+
+def rk4_step(y, t, h, breaks, coefs, i, k, burn, p):
+    """One classical RK4 step of length h from (t, y)."""
+    u0 = control_at(breaks, coefs, i, k, t, burn)
+    u1 = control_at(breaks, coefs, i, k, t + 0.5 * h, burn)
+    u2 = control_at(breaks, coefs, i, k, t + h, burn)
+    k1 = DERIV(y, u0, p)
+    yt = y
+    for j in range(len(y)):
+        yt = tuple_setitem(yt, j, y[j] + 0.5 * h * k1[j])
+    k2 = DERIV(yt, u1, p)
+    for j in range(len(y)):
+        yt = tuple_setitem(yt, j, y[j] + 0.5 * h * k2[j])
+    k3 = DERIV(yt, u1, p)
+    for j in range(len(y)):
+        yt = tuple_setitem(yt, j, y[j] + h * k3[j])
+    k4 = DERIV(yt, u2, p)
+    out = y
+    h6 = h / 6.0
+    for j in range(len(y)):
+        out = tuple_setitem(out, j, y[j] + h6 * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j]))
+    return out
+
+
+def event_value(kind, y, t, breaks, coefs, i, k, burn, p, r_stop, m_dry):
+    """Signed event function: crosses zero (upward for SPEED_MIN) at the event."""
+    if kind == EVENT_RADIUS:
+        return RADIUS(y) - r_stop
+    if kind == EVENT_FUEL:
+        return MASS(y) - m_dry
+    u = control_at(breaks, coefs, i, k, t, burn)
+    return SPEED_RATE(y, DERIV(y, u, p))
+
+
+def is_after(kind, g):
+    """Whether the event function value g lies on the post-event side."""
+    if kind == EVENT_SPEED_MIN:
+        return g >= 0.0
+    return g <= 0.0
+
+
+def locate(kind, y, t, h, g_lo, g_hi, breaks, coefs, i, k, burn, p, r_stop, m_dry):
+    """Partial step in (0, h] at which the event fires, by Illinois regula falsi.
+
+    The event is located on the RK4 solution itself (each trial is an RK4 step of the trial
+    length from the step's start), so the stopped state is exactly what the integrator would
+    reach there. Returns the shortest trial length found on the post-event side.
+    """
+    lo = 0.0
+    hi = h
+    side = 0
+    for _ in range(_ROOT_ITERATIONS):
+        if hi - lo <= 1e-15 * (1.0 + abs(t)):
+            break
+        denom = g_hi - g_lo
+        mid = lo - g_lo * (hi - lo) / denom if denom != 0.0 else 0.5 * (lo + hi)
+        if not (lo < mid < hi):
+            mid = 0.5 * (lo + hi)
+        ym = rk4_step(y, t, mid, breaks, coefs, i, k, burn, p)
+        gm = event_value(kind, ym, t + mid, breaks, coefs, i, k, burn, p, r_stop, m_dry)
+        if is_after(kind, gm):
+            hi = mid
+            g_hi = gm
+            if side == 1:
+                g_lo *= 0.5
+            side = 1
+        else:
+            lo = mid
+            g_lo = gm
+            if side == -1:
+                g_hi *= 0.5
+            side = -1
+    return hi
+
+
+def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_speed_min,
+              record):
+    """Integrate a batch with fixed-step RK4 and in-step event location.
+
+    y0 (B, nx); t0, dt, r_stop (B,); breaks (B, n_seg+1); coefs (B, n_seg, nu, order).
+    Returns y_end (B, nx), t_end (B,), status (B,), t_burnout (B,), n_rec (B,), traj.
+    """
+    n_traj = y0.shape[0]
+    nx = y0.shape[1]
+    y_end = np.empty((n_traj, nx))
+    t_end = np.empty(n_traj)
+    status = np.zeros(n_traj, dtype=np.int64)
+    t_burnout = np.full(n_traj, np.nan)
+    n_rec = np.zeros(n_traj, dtype=np.int64)
+    if record:
+        traj = np.empty((n_traj, n_steps + 1, nx))
+    else:
+        traj = np.empty((1, 1, nx))
+    for i in prange(n_traj):
+        y = LOAD(y0[i])
+        t = t0[i]
+        h = dt[i]
+        rs = r_stop[i]
+        use_radius = rs == rs
+        burn = 1.0 if MASS(y) > m_dry else 0.0
+        k = 0
+        if record:
+            for j in range(nx):
+                traj[i, 0, j] = y[j]
+        st = EVENT_NONE
+        g_speed = 0.0
+        if stop_at_speed_min:
+            g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn, p, rs, m_dry)
+        s_done = 0
+        for s in range(n_steps):
+            t_next = t0[i] + (s + 1) * h
+            while k < coefs.shape[1] - 1 and t >= breaks[i, k + 1]:
+                k += 1
+            while True:
+                hh = t_next - t
+                y1 = rk4_step(y, t, hh, breaks, coefs, i, k, burn, p)
+                kind = EVENT_NONE
+                best = hh
+                if burn > 0.0 and MASS(y1) <= m_dry:
+                    tau = locate(EVENT_FUEL, y, t, hh, MASS(y) - m_dry, MASS(y1) - m_dry,
+                                 breaks, coefs, i, k, burn, p, rs, m_dry)
+                    if tau <= best:
+                        best = tau
+                        kind = EVENT_FUEL
+                if use_radius:
+                    g0 = RADIUS(y) - rs
+                    g1 = RADIUS(y1) - rs
+                    if g0 > 0.0 and g1 <= 0.0:
+                        tau = locate(EVENT_RADIUS, y, t, hh, g0, g1, breaks, coefs, i, k, burn,
+                                     p, rs, m_dry)
+                        if tau < best or kind == EVENT_NONE:
+                            best = tau
+                            kind = EVENT_RADIUS
+                g1s = 0.0
+                if stop_at_speed_min:
+                    g1s = event_value(EVENT_SPEED_MIN, y1, t + hh, breaks, coefs, i, k, burn, p,
+                                      rs, m_dry)
+                    if g_speed < 0.0 and g1s >= 0.0:
+                        tau = locate(EVENT_SPEED_MIN, y, t, hh, g_speed, g1s, breaks, coefs, i,
+                                     k, burn, p, rs, m_dry)
+                        if tau < best or kind == EVENT_NONE:
+                            best = tau
+                            kind = EVENT_SPEED_MIN
+                if kind == EVENT_NONE:
+                    y = y1
+                    t = t_next
+                    g_speed = g1s
+                    break
+                y = rk4_step(y, t, best, breaks, coefs, i, k, burn, p)
+                t = t + best
+                if kind == EVENT_FUEL:
+                    burn = 0.0
+                    t_burnout[i] = t
+                    if stop_at_speed_min:
+                        g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn,
+                                              p, rs, m_dry)
+                    if t_next - t <= 1e-15 * (1.0 + abs(t)):
+                        t = t_next
+                        break
+                    continue
+                st = kind
+                break
+            s_done = s + 1
+            if record:
+                for j in range(nx):
+                    traj[i, s_done, j] = y[j]
+            if st != EVENT_NONE:
+                break
+        status[i] = st
+        t_end[i] = t
+        n_rec[i] = s_done + 1
+        for j in range(nx):
+            y_end[i, j] = y[j]
+        if record:
+            for s2 in range(s_done + 1, n_steps + 1):
+                for j in range(nx):
+                    traj[i, s2, j] = y[j]
+    return y_end, t_end, status, t_burnout, n_rec, traj

@@ -1,0 +1,1 @@
+"""Pieces shared by every optimiser: the Problem interface and the result object."""
