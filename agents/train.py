@@ -1,0 +1,508 @@
+"""Train a Stable-Baselines3 policy on a lunar-descent environment with one command.
+
+::
+
+    python train.py                                   # PPO, LunarSoftLanding-v0, shipped config,
+                                                      # then the comparison table vs the optimum
+    python train.py --quick                           # the few-thousand-step CI configuration
+    python train.py --algo sac --env LunarPinpointLanding-v0 --seed 3
+    python train.py -n 200000 --hyperparams n_steps=512 policy_kwargs.activation_fn=relu
+    python train.py --resume runs/ppo/LunarSoftLanding-v0_1   # continue an interrupted run
+
+Layout follows the RL Baselines3 Zoo: hyperparameters come from ``agents/hyperparams/<algo>.yml``
+keyed by env id (``--config quick`` / ``--quick`` selects the ``<env id>@quick`` profile), and
+command-line flags override them. Each run directory ``<log-folder>/<algo>/<env id>_<k>/`` holds
+
+- ``config.yml`` (the hyperparameters actually used), ``args.yml`` (every argument, including the
+  seed drawn when none was given), ``command.txt`` (the command line);
+- ``checkpoints/rl_model_<steps>_steps.zip`` with ``rl_model_vecnormalize_<steps>_steps.pkl``
+  (and the replay buffer for SAC/TD3), written at rollout boundaries;
+- ``tb/`` TensorBoard logs, ``model.zip`` and ``vecnormalize.pkl`` (the final model);
+- ``evaluation/`` the comparison against the optimiser baselines (``agents.evaluate``).
+
+Training runs on the natively batched vector env (all landers stepped in one call of the dynamics
+core) through the SB3 adapter :func:`agents.vec_env.make_sb3_vec_env`, not on a
+``SubprocVecEnv`` of single envs. Envs that are not ours (any other Gymnasium id) fall back to
+SB3's ``make_vec_env``.
+
+Resuming: ``--resume RUN_DIR`` reloads the newest checkpoint (model, optimiser state,
+``VecNormalize`` statistics, replay buffer, timestep counter) and continues with
+``reset_num_timesteps=False`` until the run's ``n_timesteps``; an interrupted run (Ctrl-C or
+SIGTERM) writes a checkpoint before exiting. Checkpoints are taken at the end of a rollout, so no
+collected-and-trained step is lost; the learning-rate schedule continues where it stopped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shlex
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from agents.hyperparams import (
+    ALGOS,
+    apply_overrides,
+    default_hyperparams_path,
+    load_hyperparams,
+    parse_override,
+    resolve_algo_kwargs,
+)
+
+__all__ = ["main", "build_parser", "train", "make_training_env", "latest_checkpoint",
+           "load_trained", "DEFAULT_ENV_ID"]
+
+DEFAULT_ENV_ID = "LunarSoftLanding-v0"
+_CKPT_RE = re.compile(r"^rl_model_(\d+)_steps\.zip$")
+#: info keys averaged over finished episodes and written to TensorBoard under ``episode/``
+_EPISODE_INFO_KEYS = ("fuel_used_kg", "touchdown_speed_m_s", "miss_distance_m")
+
+
+def _algo_class(algo: str):
+    from stable_baselines3 import PPO, SAC, TD3
+
+    return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="train.py",
+        description="Train an SB3 agent (PPO by default) on a lunar-descent env, then compare it "
+                    "with the optimiser baselines.")
+    p.add_argument("--algo", default="ppo", choices=ALGOS, help="RL algorithm (default: ppo)")
+    p.add_argument("--env", default=DEFAULT_ENV_ID, help=f"env id (default: {DEFAULT_ENV_ID})")
+    p.add_argument("--hyperparams-file", "--conf-file", dest="hyperparams_file", default=None,
+                   help="Zoo-style YAML keyed by env id (default: agents/hyperparams/<algo>.yml)")
+    p.add_argument("--config", default="default",
+                   help="profile of the YAML entry: 'default' or e.g. 'quick' (<env>@quick)")
+    p.add_argument("--quick", action="store_true", help="same as --config quick")
+    p.add_argument("--hyperparams", "-params", nargs="+", default=[], metavar="KEY=VALUE",
+                   help="override hyperparameters (values parsed as YAML; dotted keys nest)")
+    p.add_argument("-n", "--n-timesteps", type=int, default=None, help="override n_timesteps")
+    p.add_argument("--n-envs", type=int, default=None, help="override n_envs")
+    p.add_argument("--seed", type=int, default=None,
+                   help="random seed (default: drawn and recorded in args.yml)")
+    p.add_argument("--log-folder", "-f", default="runs", help="parent of the run directories")
+    p.add_argument("--run-dir", default=None, help="explicit run directory (must not exist)")
+    p.add_argument("--resume", default=None, metavar="RUN_DIR",
+                   help="continue the run in RUN_DIR from its newest checkpoint")
+    p.add_argument("--save-freq", type=int, default=None,
+                   help="checkpoint every this many env steps (default: n_timesteps/20)")
+    p.add_argument("--device", default="cpu", help="torch device (default: cpu)")
+    p.add_argument("--torch-threads", type=int, default=1,
+                   help="torch intra-op threads (default 1: the env batch uses the other core)")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.add_argument("--no-tensorboard", action="store_true", help="do not write TensorBoard logs")
+    p.add_argument("--eval-states", type=int, default=1000,
+                   help="dispersed initial states for the final comparison (0: skip)")
+    p.add_argument("--eval-seed", type=int, default=2026,
+                   help="seed of the evaluation set of initial states")
+    p.add_argument("--eval-expert-states", type=int, default=None,
+                   help="states the (slow) closed-loop re-planning expert is run on "
+                        "(default: agents.evaluate's default)")
+    p.add_argument("--no-eval", action="store_true", help="same as --eval-states 0")
+    p.add_argument("--verbose", "-v", type=int, default=1, help="SB3 verbosity (0, 1, 2)")
+    return p
+
+
+# ----------------------------------------------------------------------------- environments
+
+
+def _is_native_env(env_id: str) -> bool:
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401  (registers our ids)
+
+    try:
+        spec = gym.spec(env_id)
+    except gym.error.Error:
+        return False
+    return spec.vector_entry_point is not None and str(spec.entry_point).startswith("lunar_env")
+
+
+def make_training_env(env_id: str, n_envs: int, seed: int | None,
+                      env_kwargs: dict[str, Any] | None = None):
+    """Build the SB3 ``VecEnv`` to train on (no normalisation wrapper).
+
+    Our env ids go through the natively batched vector env (:func:`agents.vec_env.
+    make_sb3_vec_env`); other Gymnasium ids through SB3's ``make_vec_env`` (``DummyVecEnv``).
+    Episode statistics are recorded by ``VecMonitor`` when the adapter does not already.
+    """
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import VecMonitor
+    from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
+
+    env_kwargs = dict(env_kwargs or {})
+    if n_envs < 1:
+        raise ValueError(f"n_envs={n_envs} must be >= 1")
+    if _is_native_env(env_id):
+        from agents.vec_env import make_sb3_vec_env
+
+        venv = make_sb3_vec_env(env_id, n_envs, seed=seed, **env_kwargs)
+    else:
+        venv = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
+        return venv  # make_vec_env already wraps each env in Monitor
+    node, monitored = venv, False
+    while True:
+        if isinstance(node, VecMonitor):
+            monitored = True
+            break
+        if not isinstance(node, VecEnvWrapper):
+            break
+        node = node.venv
+    if not monitored:
+        venv = VecMonitor(venv)
+    return venv
+
+
+def _normalize_kwargs(normalize: Any, gamma: float | None) -> dict[str, Any] | None:
+    if normalize in (None, False):
+        return None
+    if normalize is True:
+        kw: dict[str, Any] = {}
+    elif isinstance(normalize, dict):
+        kw = dict(normalize)
+    else:
+        raise ValueError(f"normalize={normalize!r}: expected true/false or a mapping of "
+                         "VecNormalize arguments")
+    if gamma is not None:
+        kw.setdefault("gamma", gamma)
+    return kw
+
+
+# ----------------------------------------------------------------------------- callbacks
+
+
+def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
+    from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
+
+    class RolloutCheckpointCallback(CheckpointCallback):
+        """``CheckpointCallback`` that saves at rollout ends, every ``save_freq`` env steps.
+
+        Saving at the end of a rollout (not in the middle of one, as the parent does) means a
+        resumed run restarts from a state where every counted step has been trained on. The
+        ``VecNormalize`` statistics, the replay buffer (off-policy) and the run's config are
+        saved alongside. ``save_freq`` counts env steps (all envs together), not calls.
+        """
+
+        def __init__(self) -> None:
+            super().__init__(save_freq=1, save_path=str(run_dir / "checkpoints"),
+                             name_prefix="rl_model", save_replay_buffer=True,
+                             save_vecnormalize=True, verbose=0)
+            self.save_every_steps = max(int(save_freq), 1)
+            self._last_saved = None
+
+        def _on_training_start(self) -> None:
+            self._last_saved = self.model.num_timesteps
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_rollout_end(self) -> None:
+            if self.model.num_timesteps - self._last_saved >= self.save_every_steps:
+                self.save_now()
+
+        def save_now(self) -> Path:
+            """Write the checkpoint for the current ``num_timesteps`` and return its path."""
+            self.num_timesteps = self.model.num_timesteps  # the parent names files after this
+            path = Path(self._checkpoint_path(extension="zip"))
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self.model.save(path)
+            if getattr(self.model, "replay_buffer", None) is not None:
+                self.model.save_replay_buffer(self._checkpoint_path("replay_buffer_", "pkl"))
+            vn = self.model.get_vec_normalize_env()
+            if vn is not None:
+                vn.save(self._checkpoint_path("vecnormalize_", "pkl"))
+            cfg = path.parent / "config.yml"
+            if not cfg.exists():
+                cfg.write_text(yaml.safe_dump(config, sort_keys=True))
+            self._last_saved = self.model.num_timesteps
+            return path
+
+    class EpisodeInfoCallback(BaseCallback):
+        """Log the mean SI landing quantities of finished episodes (``episode/*``)."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self._acc: dict[str, list[float]] = {k: [] for k in _EPISODE_INFO_KEYS}
+
+        def _on_step(self) -> bool:
+            dones = self.locals.get("dones")
+            infos = self.locals.get("infos")
+            if dones is None or infos is None:
+                return True
+            for i in np.flatnonzero(dones):
+                info = infos[i]
+                for k in _EPISODE_INFO_KEYS:
+                    v = info.get(k)
+                    if v is not None and np.isfinite(v):
+                        self._acc[k].append(float(v))
+            return True
+
+        def _on_rollout_end(self) -> None:
+            for k, vals in self._acc.items():
+                if vals:
+                    self.logger.record(f"episode/{k}", float(np.mean(vals)))
+                    vals.clear()
+
+    return RolloutCheckpointCallback(), EpisodeInfoCallback()
+
+
+# ----------------------------------------------------------------------------- run directory
+
+
+def latest_checkpoint(run_dir: str | Path) -> tuple[Path, int]:
+    """Newest ``checkpoints/rl_model_<steps>_steps.zip`` of a run and its step count.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the run has no checkpoint.
+    """
+    ckdir = Path(run_dir) / "checkpoints"
+    found = []
+    if ckdir.is_dir():
+        for f in ckdir.iterdir():
+            m = _CKPT_RE.match(f.name)
+            if m:
+                found.append((int(m.group(1)), f))
+    if not found:
+        raise FileNotFoundError(f"no checkpoint rl_model_<steps>_steps.zip in {ckdir}; "
+                                "the run cannot be resumed (start it again without --resume)")
+    steps, path = max(found)
+    return path, steps
+
+
+def _new_run_dir(log_folder: str, algo: str, env_id: str) -> Path:
+    parent = Path(log_folder) / algo
+    parent.mkdir(parents=True, exist_ok=True)
+    k = 1
+    pattern = re.compile(rf"^{re.escape(env_id)}_(\d+)$")
+    for d in parent.iterdir():
+        m = pattern.match(d.name)
+        if m:
+            k = max(k, int(m.group(1)) + 1)
+    return parent / f"{env_id}_{k}"
+
+
+def load_trained(run_dir_or_model: str | Path, env=None, device: str = "cpu"):
+    """Load a trained model and its ``VecNormalize`` statistics.
+
+    Parameters
+    ----------
+    run_dir_or_model : str or Path
+        A run directory (uses ``model.zip``, else the newest checkpoint) or a ``.zip`` path
+        (statistics from ``vecnormalize.pkl`` beside it or the matching checkpoint file).
+    env : VecEnv, optional
+        Attached to the model (needed only to continue training).
+
+    Returns
+    -------
+    model : BaseAlgorithm
+    vecnormalize_path : Path or None
+    algo : str
+    """
+    p = Path(run_dir_or_model)
+    if p.is_dir():
+        if (p / "model.zip").exists():
+            model_path, vn_path = p / "model.zip", p / "vecnormalize.pkl"
+        else:
+            model_path, steps = latest_checkpoint(p)
+            vn_path = model_path.parent / f"rl_model_vecnormalize_{steps}_steps.pkl"
+        args_file = p / "args.yml"
+    else:
+        model_path = p
+        m = _CKPT_RE.match(p.name)
+        if m:
+            vn_path = p.parent / f"rl_model_vecnormalize_{m.group(1)}_steps.pkl"
+            args_file = p.parent.parent / "args.yml"
+        else:
+            vn_path = p.parent / "vecnormalize.pkl"
+            args_file = p.parent / "args.yml"
+    if not model_path.exists():
+        raise FileNotFoundError(f"model file {model_path} does not exist")
+    algo = None
+    if args_file.exists():
+        algo = yaml.safe_load(args_file.read_text()).get("algo")
+    if algo is None:
+        import zipfile
+
+        with zipfile.ZipFile(model_path) as zf:
+            data = zf.read("data").decode()
+        algo = "sac" if '"log_ent_coef"' in data else ("td3" if "target_policy_noise" in data
+                                                        else "ppo")
+    model = _algo_class(algo).load(model_path, env=env, device=device)
+    return model, (vn_path if vn_path.exists() else None), algo
+
+
+# ----------------------------------------------------------------------------- training
+
+
+def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Merge YAML, profile and CLI overrides; return (hyperparameters, run arguments)."""
+    profile = "quick" if args.quick else args.config
+    hp_file = args.hyperparams_file or str(default_hyperparams_path(args.algo))
+    hp = load_hyperparams(hp_file, args.env, profile)
+    overrides = dict(parse_override(t) for t in args.hyperparams)
+    if args.n_timesteps is not None:
+        overrides["n_timesteps"] = args.n_timesteps
+    if args.n_envs is not None:
+        overrides["n_envs"] = args.n_envs
+    hp = apply_overrides(hp, overrides)
+    for key in ("n_timesteps", "n_envs"):
+        if key not in hp:
+            raise ValueError(f"{hp_file}: entry {args.env!r} lacks {key!r}")
+    hp["n_timesteps"] = int(float(hp["n_timesteps"]))
+    hp["n_envs"] = int(hp["n_envs"])
+    if hp["n_timesteps"] < 1:
+        raise ValueError(f"n_timesteps={hp['n_timesteps']} must be >= 1")
+    run = dict(vars(args))
+    run["config"] = profile
+    run["hyperparams_file"] = hp_file
+    if run["seed"] is None:
+        run["seed"] = int(np.random.default_rng().integers(0, 2**31 - 1))
+    return hp, run
+
+
+def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False):
+    """Train (or continue) one run; returns ``(model, run_dir)``.
+
+    ``hp`` are the resolved YAML hyperparameters, ``run`` the run arguments (as in ``args.yml``).
+    """
+    import torch
+    from stable_baselines3.common.utils import set_random_seed
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    algo = run["algo"]
+    seed = int(run["seed"])
+    torch.set_num_threads(max(int(run.get("torch_threads") or 1), 1))
+    set_random_seed(seed)
+    n_envs, n_timesteps = hp["n_envs"], hp["n_timesteps"]
+    venv = make_training_env(run["env"], n_envs, seed, hp.get("env_kwargs"))
+    tb_dir = None if run.get("no_tensorboard") else str(run_dir / "tb")
+
+    if resume:
+        ckpt, steps = latest_checkpoint(run_dir)
+        vn_path = ckpt.parent / f"rl_model_vecnormalize_{steps}_steps.pkl"
+        if vn_path.exists():
+            venv = VecNormalize.load(str(vn_path), venv)
+            venv.training = True
+        model = _algo_class(algo).load(ckpt, env=venv, device=run.get("device", "cpu"),
+                                       tensorboard_log=tb_dir)
+        rb = ckpt.parent / f"rl_model_replay_buffer_{steps}_steps.pkl"
+        if rb.exists() and hasattr(model, "load_replay_buffer"):
+            model.load_replay_buffer(rb)
+        if model.num_timesteps != steps:
+            raise RuntimeError(f"checkpoint {ckpt} holds num_timesteps={model.num_timesteps}, "
+                               f"expected {steps}")
+        print(f"Resuming {run_dir} from step {steps} of {n_timesteps}")
+    else:
+        norm_kw = _normalize_kwargs(hp.get("normalize"), hp.get("gamma"))
+        if norm_kw is not None:
+            venv = VecNormalize(venv, **norm_kw)
+        kwargs = resolve_algo_kwargs(hp, algo, n_actions=int(np.prod(venv.action_space.shape)))
+        model = _algo_class(algo)(hp.get("policy", "MlpPolicy"), venv, seed=seed,
+                                  device=run.get("device", "cpu"), tensorboard_log=tb_dir,
+                                  verbose=int(run.get("verbose", 1)), **kwargs)
+
+    remaining = n_timesteps - model.num_timesteps
+    save_freq = run.get("save_freq") or max(n_timesteps // 20, 1)
+    ckpt_cb, info_cb = _make_callbacks(run_dir, save_freq, hp)
+
+    def _on_sigterm(signum, frame):  # turn SIGTERM into the Ctrl-C path: checkpoint, then exit
+        raise KeyboardInterrupt
+
+    old_handler = signal.signal(signal.SIGTERM, _on_sigterm)
+    t0 = time.perf_counter()
+    steps0 = model.num_timesteps
+    try:
+        if remaining > 0:
+            model.learn(total_timesteps=remaining, callback=[ckpt_cb, info_cb],
+                        reset_num_timesteps=not resume, tb_log_name="run",
+                        progress_bar=not run.get("no_progress"))
+    except KeyboardInterrupt:
+        path = ckpt_cb.save_now()
+        print(f"\nInterrupted at step {model.num_timesteps}; checkpoint {path}.\n"
+              f"Continue with: python train.py --resume {run_dir}", file=sys.stderr)
+        venv.close()
+        raise
+    finally:
+        signal.signal(signal.SIGTERM, old_handler)
+    wall = time.perf_counter() - t0
+    model.save(run_dir / "model.zip")
+    vn = model.get_vec_normalize_env()
+    if vn is not None:
+        vn.save(str(run_dir / "vecnormalize.pkl"))
+    done = model.num_timesteps - steps0
+    timing = {"train_wall_s_this_session": wall, "steps_this_session": int(done),
+              "steps_per_s": done / wall if wall > 0 else float("nan"),
+              "num_timesteps": int(model.num_timesteps)}
+    tfile = run_dir / "timing.yml"
+    sessions = yaml.safe_load(tfile.read_text()) if tfile.exists() else []
+    sessions.append(timing)
+    tfile.write_text(yaml.safe_dump(sessions))
+    total_wall = sum(s["train_wall_s_this_session"] for s in sessions)
+    print(f"Trained {model.num_timesteps} steps; this session {done} steps in {wall:.1f} s "
+          f"({timing['steps_per_s']:.0f} steps/s); total training wall time {total_wall:.1f} s. "
+          f"Model: {run_dir / 'model.zip'}")
+    venv.close()
+    return model, run_dir
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command-line entry point (``python train.py``, ``python -m agents.train``)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    argv_list = list(sys.argv[1:] if argv is None else argv)
+    if args.resume:
+        run_dir = Path(args.resume)
+        if not (run_dir / "args.yml").exists() or not (run_dir / "config.yml").exists():
+            parser.error(f"--resume {run_dir}: not a run directory (args.yml/config.yml missing)")
+        run = yaml.safe_load((run_dir / "args.yml").read_text())
+        hp = yaml.safe_load((run_dir / "config.yml").read_text())
+        if args.n_timesteps is not None:  # allow extending a finished run
+            hp["n_timesteps"] = int(args.n_timesteps)
+            (run_dir / "config.yml").write_text(yaml.safe_dump(hp, sort_keys=True))
+        for key in ("no_progress", "no_eval", "eval_states", "eval_expert_states"):
+            if f"--{key.replace('_', '-')}" in argv_list:
+                run[key] = getattr(args, key)
+        with (run_dir / "command.txt").open("a") as fh:
+            fh.write(shlex.join([sys.executable, *sys.argv]) + "\n")
+        resume = True
+    else:
+        hp, run = _resolve_args(args)
+        run_dir = Path(args.run_dir) if args.run_dir else _new_run_dir(args.log_folder,
+                                                                       args.algo, args.env)
+        if run_dir.exists() and any(run_dir.iterdir()):
+            parser.error(f"run directory {run_dir} exists and is not empty; use --resume")
+        run_dir.mkdir(parents=True, exist_ok=True)
+        run["run_dir"] = str(run_dir)
+        (run_dir / "config.yml").write_text(yaml.safe_dump(hp, sort_keys=True))
+        (run_dir / "args.yml").write_text(yaml.safe_dump(run, sort_keys=True))
+        (run_dir / "command.txt").write_text(shlex.join([sys.executable, *sys.argv]) + "\n")
+        resume = False
+    print(f"Run directory: {run_dir}  (algo={run['algo']}, env={run['env']}, "
+          f"config={run['config']}, seed={run['seed']})")
+    try:
+        train(hp, run, run_dir, resume=resume)
+    except KeyboardInterrupt:
+        return 130
+    n_eval = 0 if run.get("no_eval") else int(run.get("eval_states") or 0)
+    if n_eval > 0:
+        from agents.evaluate import evaluate_run
+
+        evaluate_run(run_dir, n_states=n_eval, seed=int(run.get("eval_seed", 2026)),
+                     n_expert_states=run.get("eval_expert_states"))
+    return 0
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("PYTHONUNBUFFERED", "1")
+    raise SystemExit(main())
