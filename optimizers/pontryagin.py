@@ -1,0 +1,723 @@
+"""Pontryagin (indirect) shooting for the planar minimum-fuel landing with free final time.
+
+Not in the papers, but every paper measures itself against "the Pontryagin optimum"; this
+module computes it for any planar scenario (paper 000's nominal case ``zhu2007`` first) and
+from any initial state, fast enough to be a per-case reference over a dispersion and a
+closed-loop re-planning expert.
+
+Problem
+-------
+Normalised units of :mod:`lunar_env.dynamics` (μ = 1, ``scenario.scaling()``). State
+x = (r, v, θ, ω, m), control φ (thrust angle to the local horizontal), throttle fixed at 1:
+paper 000's engine burns at constant thrust through the powered descent, so the propellant
+used is ṁ·tf and **minimum fuel is minimum time**. Minimise J = tf subject to
+x' = f(x, φ) = :func:`lunar_env.dynamics.planar_rhs_casadi`, x(0) = x0 and the terminal
+conditions r(tf) = r_f, v(tf) = v_f, r(tf)·ω(tf) = v_t,f (θ(tf), m(tf) free).
+
+Necessary conditions (derived here, on CasADi symbols of the shared right-hand side)
+-------------------------------------------------------------------------------------
+Hamiltonian, with the cost multiplier normalised to λ0 = 1 (normal extremal)::
+
+    H(x, λ, φ) = 1 + λᵀ f(x, φ),     λ = (λ_r, λ_v, λ_θ, λ_ω, λ_m)
+
+* Costate equations λ' = −∂H/∂x, obtained by **automatic differentiation** (CasADi) of
+  ``planar_rhs_casadi`` with φ held fixed; nothing is re-typed by hand.
+* Optimal thrust angle. φ enters H only through (F/m)·(λ_v sin φ − (λ_ω/r) cos φ). Writing
+  A = λ_v, B = −λ_ω/r, the term A sin φ + B cos φ is minimised over φ by
+  (sin φ, cos φ) = −(A, B)/√(A² + B²), i.e. ::
+
+      φ* = atan2(−λ_v, λ_ω / r)
+
+  the primer-vector law in this frame: the thrust points along −(λ_v, −λ_ω/r) in (radial,
+  braking-horizontal) components. The minimum is unique whenever (λ_v, λ_ω) ≠ 0; the tests
+  check H(φ*) ≤ H(φ) on a grid of φ along the optimal arc. Sign conventions: φ > 0 tilts the
+  thrust upward; cos φ > 0 brakes the horizontal motion (as in :mod:`lunar_env.dynamics`).
+* θ is free at tf and absent from f, so λ_θ' = 0 and λ_θ(tf) = 0 give λ_θ ≡ 0: it is fixed to
+  zero and not an unknown.
+* m(tf) is free: λ_m(tf) = 0. The mass costate does not feed back into φ* (constant thrust)
+  but is integrated with the rest and enters H through λ_m·ṁ, so it is handled consistently.
+* Free tf, autonomous problem: H ≡ 0 along the arc; imposed as H(tf) = 0 (transversality). The
+  tests check that H stays at 0 along the whole arc.
+
+Shooting
+--------
+Unknowns p = (λ_r(0), λ_v(0), λ_ω(0), λ_m(0), tf) (5); residuals (5)::
+
+    r(tf) − r_f,  v(tf) − v_f,  r(tf)ω(tf) − v_t,f,  λ_m(tf),  H(tf)
+
+The state–costate system is integrated on τ = t/tf ∈ [0, 1] with fixed-step RK4 written as
+CasADi expressions that call the shared right-hand side (``n_steps`` steps, default 400), and
+solved by a damped Newton method whose Jacobian is exact (CasADi AD) on a coarser grid
+(``n_jac_steps``, default 50): an inexact Newton that converges to the fine-grid solution
+(the coarse and fine Jacobians differ by O(h⁴), so the iteration contracts by ~1e-4 per step).
+
+Robust start
+------------
+1. A warm start (``guess``) from a neighbouring solution, e.g. the previous case of a batch;
+2. if Newton fails from it: continuation in the initial state from the guess's own initial
+   state to the requested one (adaptive steps);
+3. otherwise (and when no guess is given): costates estimated from the defect multipliers of a
+   coarse direct collocation (:mod:`optimizers.planar_collocation`, CasADi + IPOPT), which
+   converges from a straight-line guess.
+
+Accuracy check
+--------------
+``check="reference"`` replays the solution's thrust angle through
+:func:`lunar_env.integrators.integrate_reference` (scipy DOP853, rtol 1e-13) and reports the
+terminal errors in SI; ``"doubling"`` re-integrates the state–costate system with 2·n_steps
+(estimates the RK4 error, cheap); ``"grid"`` reports the shooting residual itself.
+
+Public API
+----------
+:func:`solve_planar_min_fuel`, :class:`PontryaginSolution`, :class:`PontryaginGuess`.
+
+>>> from lunar_env import get_scenario
+>>> sol = solve_planar_min_fuel(get_scenario("zhu2007"))   # doctest: +SKIP
+>>> round(sol.fuel_kg, 3), round(sol.tf_s, 3)               # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lunar_env import dynamics as dyn
+from lunar_env.scenarios import PlanarScenario
+
+from .common.result import OptimResult, Trajectory
+from .planar_collocation import (
+    initial_state_nd,
+    rocket_equation_tf_nd,
+    solve_planar_min_time_collocation,
+    target_nd,
+)
+
+__all__ = [
+    "PontryaginGuess", "PontryaginSolution", "solve_planar_min_fuel", "optimal_thrust_angle",
+    "hamiltonian", "replay_reference",
+]
+
+# Index of the state-costate vector z = (x, λ) (10,).
+_LAM = 5
+_CHECKS = ("reference", "doubling", "grid")
+
+
+# ---------------------------------------------------------------------------------------------
+# CasADi systems (built once per (params, grid) and cached per process)
+# ---------------------------------------------------------------------------------------------
+
+
+class _System:
+    """CasADi functions of the state–costate system for one set of vehicle parameters."""
+
+    def __init__(self, thrust_nd: float, exhaust_velocity_nd: float) -> None:
+        import casadi as ca
+
+        self.params = dyn.PlanarParams(thrust_nd, exhaust_velocity_nd)
+        x = ca.SX.sym("x", 5)
+        lam = ca.SX.sym("lam", 5)
+        u = ca.SX.sym("u", 2)
+        f = dyn.planar_rhs_casadi(x, u, self.params)
+        h_expr = 1.0 + ca.dot(lam, f)
+        dh_dx = ca.gradient(h_expr, x)  # ∂H/∂x at fixed control (AD of the shared rhs)
+        phi = ca.atan2(-lam[dyn.VR], lam[dyn.OMEGA] / x[dyn.R])
+        u_star = ca.vertcat(phi, 1.0)
+        z = ca.vertcat(x, lam)
+        rhs = ca.vertcat(ca.substitute(f, u, u_star), -ca.substitute(dh_dx, u, u_star))
+        self.z = z
+        self.rhs_expr = rhs
+        self.rhs = ca.Function("pmp_rhs", [z], [rhs])
+        self.ham_u = ca.Function("pmp_hamiltonian_u", [x, lam, u[0]],
+                                 [ca.substitute(h_expr, u[1], 1.0)])
+        self.ham = ca.Function("pmp_hamiltonian", [z], [ca.substitute(h_expr, u, u_star)])
+        self.phi = ca.Function("pmp_phi", [z], [phi])
+        zs = ca.SX.sym("zs", 10)
+        hs = ca.SX.sym("hs")
+        k1 = self.rhs(zs)
+        k2 = self.rhs(zs + 0.5 * hs * k1)
+        k3 = self.rhs(zs + 0.5 * hs * k2)
+        k4 = self.rhs(zs + hs * k3)
+        self.step = ca.Function("pmp_rk4", [zs, hs], [zs + hs / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)])
+        self._shooting: dict[tuple[int, bool], object] = {}
+        self._grid: dict[int, object] = {}
+        self._evals: dict[int, object] = {}
+
+    @staticmethod
+    def initial(ca, p, x0):
+        return ca.vertcat(x0, p[0], p[1], 0.0, p[2], p[3])
+
+    def residual_of(self, ca, zf, tgt):
+        return ca.vertcat(zf[dyn.R] - tgt[0], zf[dyn.VR] - tgt[1],
+                          zf[dyn.R] * zf[dyn.OMEGA] - tgt[2], zf[_LAM + dyn.M], self.ham(zf))
+
+    def shooting(self, n_steps: int, with_jacobian: bool):
+        """``(p, x0, tgt) -> res (5,) [, jac (5, 5)]``, RK4 unrolled as SX (fast to evaluate)."""
+        key = (n_steps, with_jacobian)
+        if key not in self._shooting:
+            import casadi as ca
+
+            p = ca.SX.sym("p", 5)
+            x0 = ca.SX.sym("x0", 5)
+            tgt = ca.SX.sym("tgt", 3)
+            z = self.initial(ca, p, x0)
+            h = p[4] / n_steps
+            for _ in range(n_steps):
+                z = self.step(z, h)
+            res = self.residual_of(ca, z, tgt)
+            outs = [res, ca.jacobian(res, p)] if with_jacobian else [res]
+            self._shooting[key] = ca.Function(f"pmp_shoot_{n_steps}", [p, x0, tgt], outs)
+        return self._shooting[key]
+
+    def grid(self, n_steps: int):
+        """``(p, x0) -> Z (10, n_steps + 1)``: the RK4 grid (MX map-accumulate; cheap to build)."""
+        if n_steps not in self._grid:
+            import casadi as ca
+
+            acc = self.step.mapaccum("pmp_acc", n_steps)
+            p = ca.MX.sym("p", 5)
+            x0 = ca.MX.sym("x0", 5)
+            z0 = self.initial(ca, p, x0)
+            zs = acc(z0, ca.repmat(p[4] / n_steps, 1, n_steps))
+            self._grid[n_steps] = ca.Function(f"pmp_grid_{n_steps}", [p, x0],
+                                              [ca.horzcat(z0, zs)])
+        return self._grid[n_steps]
+
+    def evaluate(self, zgrid: np.ndarray):
+        """rhs (10, n), H (n,), φ (n,) at the columns of ``zgrid``."""
+        n = zgrid.shape[1]
+        if n not in self._evals:
+            import casadi as ca
+
+            zz = ca.SX.sym("z", 10)
+            fun = ca.Function("pmp_eval", [zz], [self.rhs(zz), self.ham(zz), self.phi(zz)])
+            self._evals[n] = fun.map(n)
+        rhs, ham, phi = self._evals[n](zgrid)
+        return np.asarray(rhs), np.asarray(ham).ravel(), np.asarray(phi).ravel()
+
+
+_SYSTEMS: dict[tuple[float, float], _System] = {}
+
+
+def _system(params: dyn.PlanarParams) -> _System:
+    key = (float(params.thrust_nd), float(params.exhaust_velocity_nd))
+    if key not in _SYSTEMS:
+        _SYSTEMS[key] = _System(*key)
+    return _SYSTEMS[key]
+
+
+def optimal_thrust_angle(state_nd: np.ndarray, costate_nd: np.ndarray) -> np.ndarray:
+    """φ* = atan2(−λ_v, λ_ω / r), the angle that minimises H (see the module docstring).
+
+    Parameters
+    ----------
+    state_nd : ndarray, shape (..., 5)
+    costate_nd : ndarray, shape (..., 5)
+
+    Returns
+    -------
+    ndarray, shape (...,), radians in (−π, π].
+    """
+    s = np.asarray(state_nd, dtype=np.float64)
+    lam = np.asarray(costate_nd, dtype=np.float64)
+    return np.arctan2(-lam[..., dyn.VR], lam[..., dyn.OMEGA] / s[..., dyn.R])
+
+
+def hamiltonian(scenario: PlanarScenario, state_nd, costate_nd, phi_rad) -> np.ndarray:
+    """H = 1 + λᵀ f(x, φ) with the throttle at 1 (normalised); shapes broadcast to (...,)."""
+    params = scenario.params()
+    s = np.atleast_2d(np.asarray(state_nd, dtype=np.float64))
+    lam = np.atleast_2d(np.asarray(costate_nd, dtype=np.float64))
+    phi = np.atleast_1d(np.asarray(phi_rad, dtype=np.float64))
+    s, lam, phi = np.broadcast_arrays(s, lam, phi[..., None])
+    u = np.stack([phi[..., 0], np.ones(phi.shape[:-1])], axis=-1)
+    f = dyn.planar_rhs(s, u, params)
+    return 1.0 + np.sum(lam * f, axis=-1)
+
+
+# ---------------------------------------------------------------------------------------------
+# Results
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PontryaginGuess:
+    """A starting point for the shooting (normalised; reusable as a warm start).
+
+    Attributes
+    ----------
+    costates0_nd : ndarray, shape (5,)
+        (λ_r, λ_v, λ_θ, λ_ω, λ_m) at the initial time, λ0 = 1 normalisation; λ_θ is ignored
+        (it is identically zero).
+    tf_nd : float
+        Time to go, normalised.
+    x0_nd : ndarray, shape (5,) or None
+        The initial state these costates belong to (enables continuation from it).
+    """
+
+    costates0_nd: np.ndarray
+    tf_nd: float
+    x0_nd: np.ndarray | None = None
+
+    def unknowns(self) -> np.ndarray:
+        lam = np.asarray(self.costates0_nd, dtype=np.float64)
+        return np.array([lam[dyn.R], lam[dyn.VR], lam[dyn.OMEGA], lam[dyn.M], self.tf_nd])
+
+
+@dataclass
+class PontryaginSolution:
+    """Result of :func:`solve_planar_min_fuel`.
+
+    Attributes
+    ----------
+    success : bool
+        Shooting converged (residual ≤ tol), tf > 0 and the fuel suffices; see ``message``.
+    message : str
+    fuel_kg : float
+        Propellant used, ṁ·tf.
+    tf_s : float
+        Optimal final time (s).
+    costates0 : ndarray, shape (5,)
+        Initial costates (λ_r, λ_v, λ_θ, λ_ω, λ_m), conjugate to the normalised state,
+        λ0 = 1 (J = tf in units of ``scaling.time_s``); λ_θ = 0.
+    terminal_errors : dict of str -> float
+        Absolute terminal errors in SI: ``radius_m``, ``radial_velocity_m_s``,
+        ``tangential_velocity_m_s``, ``speed_m_s`` (norm of the two velocity errors), from the
+        check named in ``check``.
+    wall_s : float
+        Wall time of the solve (including the check).
+    guess : PontryaginGuess
+        Warm start for a neighbouring problem.
+    check : str
+        How ``terminal_errors`` were measured ("reference", "doubling" or "grid").
+    n_iter : int
+        Newton iterations (all stages).
+    residual_nd : float
+        Final shooting residual (∞-norm, normalised).
+    final_mass_kg : float
+    x0_nd : ndarray, shape (5,)
+        Normalised initial state.
+    history : ndarray
+        Residual ∞-norm per Newton iteration.
+    """
+
+    success: bool
+    message: str
+    fuel_kg: float
+    tf_s: float
+    costates0: np.ndarray
+    terminal_errors: dict[str, float]
+    wall_s: float
+    guess: PontryaginGuess
+    check: str
+    n_iter: int
+    residual_nd: float
+    final_mass_kg: float
+    x0_nd: np.ndarray
+    history: np.ndarray
+    scenario: PlanarScenario = field(repr=False)
+    n_steps: int = 400
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    # ---- pickling: drop the (re-computable) grid cache --------------------------------------
+    def __getstate__(self):
+        d = dict(self.__dict__)
+        d["_cache"] = {}
+        return d
+
+    @property
+    def tf_nd(self) -> float:
+        return float(self.guess.tf_nd)
+
+    def _grid(self) -> dict:
+        """The fine RK4 grid of the state–costate system and its derivatives (cached)."""
+        if "z" not in self._cache:
+            sysm = _system(self.scenario.params())
+            p = self.guess.unknowns()
+            z = np.asarray(sysm.grid(self.n_steps)(p, self.x0_nd))
+            rhs, ham, phi = sysm.evaluate(z)
+            t = np.linspace(0.0, p[4], self.n_steps + 1)
+            self._cache.update(z=z, dz=rhs, H=ham, phi=phi, t=t)
+        return self._cache
+
+    def _interp(self, t_nd) -> np.ndarray:
+        """Cubic Hermite interpolation of z on the RK4 grid; t_nd (n,) -> (n, 10)."""
+        g = self._grid()
+        t = np.clip(np.atleast_1d(np.asarray(t_nd, dtype=np.float64)), 0.0, g["t"][-1])
+        h = g["t"][1] - g["t"][0]
+        k = np.clip((t / h).astype(np.int64), 0, self.n_steps - 1)
+        s = (t - g["t"][k]) / h
+        z0, z1 = g["z"][:, k], g["z"][:, k + 1]
+        d0, d1 = g["dz"][:, k] * h, g["dz"][:, k + 1] * h
+        s2, s3 = s * s, s * s * s
+        out = ((2 * s3 - 3 * s2 + 1) * z0 + (s3 - 2 * s2 + s) * d0 + (-2 * s3 + 3 * s2) * z1
+               + (s3 - s2) * d1)
+        return out.T
+
+    def state_costate_at(self, t_s) -> np.ndarray:
+        """Normalised (x, λ) at times ``t_s`` (s, clipped to [0, tf]); shape (n, 10)."""
+        return self._interp(self.scenario.scaling().time_nd(np.atleast_1d(t_s)))
+
+    def thrust_angle_at(self, t_s):
+        """Optimal thrust angle φ (rad) at time(s) ``t_s`` since the initial state.
+
+        Parameters
+        ----------
+        t_s : float or ndarray, shape (n,)
+            Times (s), clipped to [0, tf].
+
+        Returns
+        -------
+        float or ndarray, shape (n,)
+        """
+        z = self.state_costate_at(t_s)
+        phi = optimal_thrust_angle(z[:, :5], z[:, 5:])
+        return float(phi[0]) if np.ndim(t_s) == 0 else phi
+
+    def trajectory(self, n: int = 201) -> Trajectory:
+        """The optimal trajectory at ``n`` equally spaced times, SI.
+
+        States: ``radius_m``, ``altitude_m`` (above the scenario's surface),
+        ``radial_velocity_m_s``, ``theta_rad``, ``angular_rate_rad_s``,
+        ``tangential_velocity_m_s``, ``mass_kg``; controls ``phi_rad`` and ``throttle``
+        (always 1); also ``hamiltonian`` (normalised, ≈ 0) among the states.
+        """
+        n = int(n)
+        if n < 2:
+            raise ValueError(f"n = {n} must be >= 2")
+        sc = self.scenario.scaling()
+        t_s = np.linspace(0.0, self.tf_s, n)
+        z = self.state_costate_at(t_s)
+        x, lam = z[:, :5], z[:, 5:]
+        phi = optimal_thrust_angle(x, lam)
+        r_m = x[:, dyn.R] * sc.length_m
+        states = {
+            "radius_m": r_m,
+            "altitude_m": r_m - self.scenario.surface_radius_m,
+            "radial_velocity_m_s": x[:, dyn.VR] * sc.velocity_m_s,
+            "theta_rad": x[:, dyn.THETA],
+            "angular_rate_rad_s": x[:, dyn.OMEGA] / sc.time_s,
+            "tangential_velocity_m_s": x[:, dyn.R] * x[:, dyn.OMEGA] * sc.velocity_m_s,
+            "mass_kg": x[:, dyn.M] * sc.mass_kg,
+            "hamiltonian": hamiltonian(self.scenario, x, lam, phi),
+        }
+        return Trajectory(t_s=t_s, states=states,
+                          controls={"phi_rad": phi, "throttle": np.ones(n)})
+
+    def as_result(self, n_trajectory: int = 201) -> OptimResult:
+        """The solution as an :class:`OptimResult` (x = the shooting unknowns)."""
+        return OptimResult(
+            x=self.guess.unknowns(), fuel_kg=self.fuel_kg, tf_s=self.tf_s,
+            terminal_errors=dict(self.terminal_errors), history=np.asarray(self.history),
+            n_fevals=self.n_iter, wall_s=self.wall_s, success=self.success,
+            message=self.message, trajectory=self.trajectory(n_trajectory),
+            extra={"method": "pontryagin", "costates0": self.costates0.copy(),
+                   "check": self.check, "residual_nd": self.residual_nd,
+                   "final_mass_kg": self.final_mass_kg, "n_steps": self.n_steps})
+
+
+# ---------------------------------------------------------------------------------------------
+# Newton
+# ---------------------------------------------------------------------------------------------
+
+
+def _newton(res_fine, res_jac_coarse, p, *, tol: float, max_iter: int, history: list
+            ) -> tuple[np.ndarray, float, bool, int]:
+    """Damped inexact Newton: residual on the fine grid, Jacobian from the coarse grid.
+
+    Backtracking on the 2-norm of the fine residual; tf kept positive. Returns
+    (p, ‖res‖∞, converged, iterations).
+    """
+    res = res_fine(p)
+    nrm = float(np.max(np.abs(res))) if np.all(np.isfinite(res)) else math.inf
+    history.append(nrm)
+    it = 0
+    while it < max_iter:
+        if nrm <= tol:
+            return p, nrm, True, it
+        if not math.isfinite(nrm):
+            return p, nrm, False, it
+        it += 1
+        jac = res_jac_coarse(p)
+        try:
+            dp = np.linalg.solve(jac, -res)
+        except np.linalg.LinAlgError:
+            return p, nrm, False, it
+        if not np.all(np.isfinite(dp)):
+            return p, nrm, False, it
+        alpha = 1.0
+        if p[4] + dp[4] < 0.5 * p[4]:  # do not let tf collapse in one step
+            alpha = 0.5 * p[4] / abs(dp[4])
+        merit = float(np.linalg.norm(res))
+        accepted = False
+        while alpha > 1e-4:
+            p_try = p + alpha * dp
+            r_try = res_fine(p_try)
+            if np.all(np.isfinite(r_try)) and np.linalg.norm(r_try) < (1 - 1e-4 * alpha) * merit:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            # At the round-off floor a full step cannot decrease the residual any further.
+            return p, nrm, nrm <= 100 * tol, it
+        p, res = p_try, r_try
+        nrm = float(np.max(np.abs(res)))
+        history.append(nrm)
+    return p, nrm, nrm <= tol, it
+
+
+class _Solver:
+    """Shooting for one scenario and grid: holds the CasADi functions."""
+
+    def __init__(self, scenario: PlanarScenario, n_steps: int, n_jac_steps: int) -> None:
+        self.scenario = scenario
+        self.params = scenario.params()
+        self.system = _system(self.params)
+        self.n_steps = n_steps
+        self.n_jac_steps = n_jac_steps
+        self.fine = self.system.shooting(n_steps, with_jacobian=False)
+        self.coarse = self.system.shooting(n_jac_steps, with_jacobian=True)
+        self.tgt = target_nd(scenario)
+
+    def run(self, p0, x0, *, tol, max_iter, history):
+        def res_fine(p):
+            return np.asarray(self.fine(p, x0, self.tgt)).ravel()
+
+        def jac(p):
+            return np.asarray(self.coarse(p, x0, self.tgt)[1])
+
+        return _newton(res_fine, jac, np.asarray(p0, dtype=np.float64), tol=tol,
+                       max_iter=max_iter, history=history)
+
+
+_SOLVERS: dict[tuple, _Solver] = {}
+
+
+def _solver(scenario: PlanarScenario, n_steps: int, n_jac_steps: int) -> _Solver:
+    key = (scenario, n_steps, n_jac_steps)
+    if key not in _SOLVERS:
+        _SOLVERS[key] = _Solver(scenario, n_steps, n_jac_steps)
+    return _SOLVERS[key]
+
+
+def _collocation_guess(scenario, x0_nd, n_intervals: int) -> PontryaginGuess | None:
+    s = scenario.scaling()
+    row = np.array([x0_nd[dyn.R] * s.length_m, x0_nd[dyn.VR] * s.velocity_m_s, x0_nd[dyn.THETA],
+                    x0_nd[dyn.R] * x0_nd[dyn.OMEGA] * s.velocity_m_s, x0_nd[dyn.M] * s.mass_kg])
+    col = solve_planar_min_time_collocation(scenario, row, n_intervals=n_intervals, tol=1e-8)
+    if not col.success:
+        return None
+    # ν_0 estimates λ at the first interval's midpoint; good enough for Newton.
+    return PontryaginGuess(col.costates_nd[0].copy(), col.tf_nd, np.asarray(x0_nd, float).copy())
+
+
+# ---------------------------------------------------------------------------------------------
+# Public: one solve
+# ---------------------------------------------------------------------------------------------
+
+
+def _as_guess(guess) -> PontryaginGuess | None:
+    if guess is None or isinstance(guess, PontryaginGuess):
+        return guess
+    if isinstance(guess, PontryaginSolution):
+        return guess.guess
+    raise TypeError(f"guess must be a PontryaginGuess, a PontryaginSolution or None, got "
+                    f"{type(guess).__name__}")
+
+
+def solve_planar_min_fuel(
+    scenario: PlanarScenario,
+    initial_state_si=None,
+    *,
+    guess: PontryaginGuess | PontryaginSolution | None = None,
+    n_steps: int = 400,
+    n_jac_steps: int = 50,
+    tol: float = 1e-13,
+    max_iter: int = 30,
+    check: str = "reference",
+    continuation: bool = True,
+    collocation_fallback: bool = True,
+) -> PontryaginSolution:
+    """Minimum-fuel (= minimum-time, constant thrust) planar landing by Pontryagin shooting.
+
+    Parameters
+    ----------
+    scenario : PlanarScenario
+        E.g. ``get_scenario("zhu2007")``; its vehicle, target and scaling are used.
+    initial_state_si : array_like, shape (5,), optional
+        (r m, vr m/s, θ rad, v_t m/s, m kg); default the scenario's nominal initial state.
+    guess : PontryaginGuess or PontryaginSolution, optional
+        Warm start (e.g. a neighbour's ``solution.guess``). Default: a coarse collocation.
+    n_steps : int
+        RK4 steps of the state–costate integration (accuracy; default 400 gives terminal errors
+        ≪ 1e-6 m on zhu2007).
+    n_jac_steps : int
+        RK4 steps of the grid on which the Newton Jacobian is computed (speed).
+    tol : float
+        Convergence: ∞-norm of the normalised shooting residual.
+    max_iter : int
+        Newton iterations per attempt.
+    check : {"reference", "doubling", "grid"}
+        How ``terminal_errors`` are measured (see the module docstring).
+    continuation : bool
+        On failure from ``guess``, continue in the initial state from ``guess.x0_nd``.
+    collocation_fallback : bool
+        On failure, restart from a collocation estimate of the costates.
+
+    Returns
+    -------
+    PontryaginSolution
+        ``success`` False (not an exception) when no extremal was found.
+
+    Raises
+    ------
+    TypeError
+        ``scenario`` is not planar, or ``guess`` has the wrong type.
+    ValueError
+        ``initial_state_si`` has the wrong shape or non-finite values, a non-positive radius
+        or a mass at or below the dry mass; bad ``n_steps``, ``tol``, ``check``.
+    """
+    t_start = time.perf_counter()
+    x0 = initial_state_nd(scenario, initial_state_si)
+    n_steps = int(n_steps)
+    n_jac_steps = int(n_jac_steps)
+    if n_steps < 4 or n_jac_steps < 4:
+        raise ValueError(f"n_steps = {n_steps} and n_jac_steps = {n_jac_steps} must be >= 4")
+    if not (math.isfinite(tol) and tol > 0):
+        raise ValueError(f"tol = {tol!r} must be finite and > 0")
+    if check not in _CHECKS:
+        raise ValueError(f"check = {check!r} is not one of {_CHECKS}")
+    g = _as_guess(guess)
+    solver = _solver(scenario, n_steps, n_jac_steps)
+    history: list[float] = []
+    n_iter = 0
+    attempts: list[str] = []
+
+    def attempt(p0, x_start):
+        nonlocal n_iter
+        p, nrm, ok, it = solver.run(p0, x_start, tol=tol, max_iter=max_iter, history=history)
+        n_iter += it
+        return p, nrm, ok and p[4] > 0
+
+    p = None
+    ok = False
+    nrm = math.inf
+    if g is not None:
+        attempts.append("warm start")
+        p, nrm, ok = attempt(g.unknowns(), x0)
+        if not ok and continuation and g.x0_nd is not None:
+            attempts.append("continuation")
+            p, nrm, ok = _continuation(attempt, g, x0)
+    if not ok and (g is None or collocation_fallback):
+        for n_int in (20, 60):
+            cg = _collocation_guess(scenario, x0, n_int)
+            if cg is None:
+                continue
+            attempts.append(f"collocation({n_int})")
+            p, nrm, ok = attempt(cg.unknowns(), x0)
+            if ok:
+                break
+    if p is None:
+        p = np.array([0.0, 0.0, 1.0, 0.0, rocket_equation_tf_nd(scenario, x0)])
+    return _finish(scenario, solver, x0, p, nrm, ok, attempts, history, n_iter, check, tol,
+                   t_start)
+
+
+def _continuation(attempt, g: PontryaginGuess, x0: np.ndarray):
+    """Walk the initial state from ``g.x0_nd`` to ``x0`` with adaptive steps."""
+    xa = np.asarray(g.x0_nd, dtype=np.float64)
+    p = g.unknowns()
+    s, ds = 0.0, 0.25
+    nrm = math.inf
+    while s < 1.0:
+        s_try = min(1.0, s + ds)
+        p_try, nrm, ok = attempt(p, xa + s_try * (x0 - xa))
+        if ok:
+            s, p = s_try, p_try
+            ds = min(0.5, 2 * ds)
+        else:
+            ds *= 0.5
+            if ds < 1.0 / 64:
+                return p, nrm, False
+    return p, nrm, True
+
+
+def _finish(scenario, solver: _Solver, x0, p, nrm, ok, attempts, history, n_iter, check, tol,
+            t_start) -> PontryaginSolution:
+    sc = scenario.scaling()
+    params = solver.params
+    lam0 = np.array([p[0], p[1], 0.0, p[2], p[3]])
+    tf_nd = float(p[4])
+    flow = params.thrust_nd / params.exhaust_velocity_nd
+    mf_nd = float(x0[dyn.M] - flow * tf_nd)
+    final_mass_kg = mf_nd * sc.mass_kg
+    fuel_kg = float(x0[dyn.M] * sc.mass_kg - final_mass_kg)
+    guess = PontryaginGuess(lam0, tf_nd, np.asarray(x0, float).copy())
+    how = " -> ".join(attempts) if attempts else "none"
+    if ok and final_mass_kg <= scenario.vehicle.dry_mass_kg:
+        ok = False
+        message = (f"extremal found ({how}) but it needs {fuel_kg:.3f} kg: more than the "
+                   f"propellant above the dry mass")
+    elif ok:
+        message = f"converged ({how}), residual {nrm:.2e}"
+    else:
+        message = f"shooting did not converge ({how}); best residual {nrm:.2e} (tol {tol:.0e})"
+    sol = PontryaginSolution(
+        success=bool(ok), message=message, fuel_kg=fuel_kg, tf_s=tf_nd * sc.time_s,
+        costates0=lam0, terminal_errors={}, wall_s=0.0, guess=guess, check=check,
+        n_iter=int(n_iter), residual_nd=float(nrm), final_mass_kg=final_mass_kg,
+        x0_nd=np.asarray(x0, float).copy(), history=np.asarray(history), scenario=scenario,
+        n_steps=solver.n_steps)
+    if ok:
+        g = sol._grid()
+        r_min = float(np.min(g["z"][dyn.R])) * sc.length_m
+        if r_min < scenario.surface_radius_m - 1.0:
+            sol.success = False
+            depth_m = scenario.surface_radius_m - r_min
+            sol.message = (f"extremal found ({how}) but it passes {depth_m:.1f} m below the "
+                           "surface")
+    sol.terminal_errors = _terminal_errors(sol, solver, check)
+    sol.wall_s = time.perf_counter() - t_start
+    return sol
+
+
+def _errors_si(scenario, xf: np.ndarray) -> dict[str, float]:
+    sc = scenario.scaling()
+    tgt = target_nd(scenario)
+    dr = abs(xf[dyn.R] - tgt[0]) * sc.length_m
+    dv = (xf[dyn.VR] - tgt[1]) * sc.velocity_m_s
+    dvt = (xf[dyn.R] * xf[dyn.OMEGA] - tgt[2]) * sc.velocity_m_s
+    return {"radius_m": float(dr), "radial_velocity_m_s": float(abs(dv)),
+            "tangential_velocity_m_s": float(abs(dvt)), "speed_m_s": float(math.hypot(dv, dvt))}
+
+
+def _terminal_errors(sol: PontryaginSolution, solver: _Solver, check: str) -> dict[str, float]:
+    p = sol.guess.unknowns()
+    if check == "grid":
+        xf = sol._grid()["z"][:5, -1]
+    elif check == "doubling":
+        xf = np.asarray(solver.system.grid(2 * solver.n_steps)(p, sol.x0_nd))[:5, -1]
+    else:
+        xf = replay_reference(sol)
+    return _errors_si(sol.scenario, xf)
+
+
+def replay_reference(sol: PontryaginSolution, *, rtol: float = 1e-13,
+                     atol: float = 1e-15) -> np.ndarray:
+    """Replay ``sol``'s thrust angle through :func:`lunar_env.integrators.integrate_reference`.
+
+    The control is φ(t) from the solution's costates (cubic Hermite on the RK4 grid); the state
+    is integrated by scipy DOP853 on the shared NumPy right-hand side. Returns the normalised
+    final state (5,).
+    """
+    from lunar_env.integrators import PLANAR, integrate_reference
+
+    def control(t_nd):
+        z = sol._interp(t_nd)
+        return np.array([optimal_thrust_angle(z[0, :5], z[0, 5:]), 1.0])
+
+    out = integrate_reference(PLANAR, sol.x0_nd, (0.0, sol.tf_nd), control,
+                              sol.scenario.params(), rtol=rtol, atol=atol)
+    return out.y[:, -1]
