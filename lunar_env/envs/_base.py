@@ -1,0 +1,289 @@
+"""Task-generic single env and native vector env; the concrete envs subclass these.
+
+A *task* (``_PlanarTask``, ``_PinpointTask``) owns everything scenario-specific: spaces, the
+action-to-control map, observations, landing metrics and initial states. :class:`LanderEnv` and
+:class:`LanderVectorEnv` own the Gymnasium protocol; both step through
+:class:`~lunar_env.envs._core.LanderBatch`, so a vector env and N single envs do the same
+arithmetic.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ._core import LanderBatch
+
+__all__ = ["LanderEnv", "LanderVectorEnv", "validate_actions"]
+
+
+def validate_actions(action, shape: tuple[int, ...]) -> np.ndarray:
+    """Action(s) as float64 of ``shape``; NaN/inf or a wrong shape raise ``ValueError``.
+
+    Finite out-of-range values are *not* an error; the task clips them to [-1, 1].
+    """
+    a = np.asarray(action, dtype=np.float64)
+    if a.shape != shape:
+        if a.size == int(np.prod(shape)):
+            a = a.reshape(shape)
+        else:
+            raise ValueError(f"action has shape {a.shape}; expected {shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"action {np.asarray(action)!r} contains NaN or inf; actions must be "
+                         "finite (out-of-range finite values are clipped to [-1, 1])")
+    return a
+
+
+class LanderEnv(gym.Env):
+    """Base of the single-lander envs (see the subclasses for the manual)."""
+
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
+    _task_cls: type = None  # set by subclasses
+
+    def __init__(self, render_mode: str | None = None, **task_kwargs: Any) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode={render_mode!r} is not supported; use one of "
+                             f"{self.metadata['render_modes']} or None")
+        self.render_mode = render_mode
+        self._task = self._task_cls(**task_kwargs)
+        self.scenario = self._task.scenario
+        self.action_space = self._task.action_space
+        self.observation_space = self._task.observation_space
+        self._batch = LanderBatch(self._task, 1)
+        self._act_shape = self.action_space.shape
+        self._done = True
+        self._history: list = []
+        self._last_info: dict = {}
+        self._renderer = None
+
+    # -- public state -----------------------------------------------------------------------------
+    @property
+    def state_nd(self) -> np.ndarray:
+        """Current normalised state of the lander, shape (n_state,) (a copy)."""
+        return self._batch.y[0].copy()
+
+    @property
+    def t_s(self) -> float:
+        """Time since the start of the episode (s)."""
+        return float(self._batch.t_nd[0] * self._task.time_ref_s)
+
+    def observation_from_state(self, state_nd: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Observations of states ``state_nd`` (B, n_state) at times ``t_s`` (B,) (s).
+
+        Returns float32 (B, obs_dim), exactly what :meth:`step` returns for those states.
+        """
+        y = np.atleast_2d(np.asarray(state_nd, dtype=np.float64))
+        t = np.broadcast_to(np.asarray(t_s, dtype=np.float64), (len(y),))
+        return self._task.observation(y, t)
+
+    # -- protocol -------------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        y0 = self._task.initial_state(self.np_random, options)
+        self._batch.set_state(0, y0)
+        self._done = False
+        self._history = [(self._batch.y[0].copy(), None)] if self.render_mode else []
+        obs = self._task.observation(self._batch.y, self._batch.t_nd * self._task.time_ref_s)[0]
+        info = self._info(np.nan, np.nan, False)
+        if self.render_mode == "human":
+            self.render()
+        return obs, info
+
+    def step(self, action):
+        if self._done:
+            raise RuntimeError("the episode has ended (or reset() was never called); call reset()")
+        a = validate_actions(action, self._act_shape)
+        controls = self._task.controls_from_actions(a[None])
+        out = self._batch.step(controls)
+        b = self._batch
+        obs = self._task.observation(b.y, b.t_nd * self._task.time_ref_s)[0]
+        terminated = bool(out["terminated"][0])
+        truncated = bool(out["truncated"][0])
+        self._done = terminated or truncated
+        info = self._info(float(out["touchdown_speed_m_s"][0]), float(out["miss_distance_m"][0]),
+                          bool(out["is_success"][0]))
+        if self.render_mode:
+            self._history.append((b.y[0].copy(), controls[0].copy()))
+            if self.render_mode == "human":
+                self.render()
+        return obs, float(out["reward"][0]), terminated, truncated, info
+
+    def _info(self, touchdown_speed: float, miss: float, success: bool) -> dict:
+        b = self._batch
+        task = self._task
+        info = {
+            "fuel_used_kg": float((b.m_start_nd[0] - b.y[0, -1]) * task.mass_ref_kg),
+            "is_success": success,
+            "altitude_m": float(task.altitude_m(b.y)[0]),
+            "time_s": float(b.t_nd[0] * task.time_ref_s),
+        }
+        # only where defined (no NaN in infos): touchdown speed after touchdown, miss distance
+        # at the end of a pinpoint episode
+        if touchdown_speed == touchdown_speed:
+            info["touchdown_speed_m_s"] = touchdown_speed
+        if task.has_target and miss == miss:
+            info["miss_distance_m"] = miss
+        return info
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
+            return None
+        from .rendering import Renderer
+
+        if self._renderer is None:
+            self._renderer = Renderer(self._task, self.render_mode)
+        return self._renderer.draw(self._history)
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self):
+        d = self.__dict__.copy()
+        d["_renderer"] = None
+        return d
+
+
+class LanderVectorEnv(VectorEnv):
+    """Base of the native vector envs: all N landers in one compiled integrator call per step.
+
+    Autoreset: ``AutoresetMode.NEXT_STEP`` (Gymnasium's default, as ``SyncVectorEnv``): the step
+    after a sub-env terminated or truncated resets it, ignores its action and returns its reset
+    observation with reward 0 and ``terminated = truncated = False``.
+
+    Seeding: ``reset(seed=s)`` seeds sub-env i with ``s + i`` (as ``SyncVectorEnv`` does), each
+    sub-env keeping its own generator for its later episodes, so sub-env i replays exactly what
+    a single env reset with ``seed=s + i`` and then auto-reset without seed would do, through any
+    number of autoresets. ``options`` given to ``reset`` apply to every sub-env (``state_si`` /
+    ``state_nd`` may also be an array (N, n_state)).
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+    _task_cls: type = None
+
+    def __init__(self, num_envs: int, **task_kwargs: Any) -> None:
+        if int(num_envs) < 1:
+            raise ValueError(f"num_envs = {num_envs!r} must be >= 1")
+        task_kwargs.pop("render_mode", None)
+        task_kwargs.pop("max_episode_steps", None)
+        self.num_envs = int(num_envs)
+        self._task = self._task_cls(**task_kwargs)
+        self.scenario = self._task.scenario
+        self.single_action_space = self._task.action_space
+        self.single_observation_space = self._task.observation_space
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.render_mode = None
+        self._batch = LanderBatch(self._task, self.num_envs)
+        self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._act_shape = (self.num_envs, *self.single_action_space.shape)
+
+    @property
+    def state_nd(self) -> np.ndarray:
+        """Normalised states, shape (N, n_state) (a copy)."""
+        return self._batch.y.copy()
+
+    @property
+    def t_s(self) -> np.ndarray:
+        """Episode times (s), shape (N,)."""
+        return self._batch.t_nd * self._task.time_ref_s
+
+    def observation_from_state(self, state_nd: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """As :meth:`LanderEnv.observation_from_state`."""
+        y = np.atleast_2d(np.asarray(state_nd, dtype=np.float64))
+        t = np.broadcast_to(np.asarray(t_s, dtype=np.float64), (len(y),))
+        return self._task.observation(y, t)
+
+    def _reset_one(self, i: int, options: dict | None) -> None:
+        opt = options
+        if options:
+            opt = {}
+            for k, v in options.items():
+                arr = np.asarray(v) if k in ("state_si", "state_nd") else None
+                opt[k] = arr[i] if arr is not None and arr.ndim == 2 else v
+        self._batch.set_state(i, self._task.initial_state(self._rngs[i], opt))
+
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        if seed is not None:
+            seeds = ([seed + i for i in range(self.num_envs)] if isinstance(seed, int)
+                     else list(seed))
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"{len(seeds)} seeds given for {self.num_envs} envs")
+            self._rngs = [seeding.np_random(s)[0] for s in seeds]
+        for i in range(self.num_envs):
+            self._reset_one(i, options)
+        self._autoreset[:] = False
+        b = self._batch
+        obs = self._task.observation(b.y, b.t_nd * self._task.time_ref_s)
+        n = self.num_envs
+        return obs, self._info(np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, bool))
+
+    def step(self, actions):
+        a = validate_actions(actions, self._act_shape)
+        controls = self._task.controls_from_actions(a)
+        n = self.num_envs
+        reward = np.zeros(n)
+        terminated = np.zeros(n, dtype=bool)
+        truncated = np.zeros(n, dtype=bool)
+        speed = np.full(n, np.nan)
+        miss = np.full(n, np.nan)
+        success = np.zeros(n, dtype=bool)
+        reset_idx = np.flatnonzero(self._autoreset)
+        if len(reset_idx) == 0:
+            out = self._batch.step(controls)
+            reward, terminated, truncated = out["reward"], out["terminated"], out["truncated"]
+            speed, miss, success = (out["touchdown_speed_m_s"], out["miss_distance_m"],
+                                    out["is_success"])
+        else:
+            act = np.flatnonzero(~self._autoreset)
+            if len(act):
+                out = self._batch.step(controls[act], act)
+                reward[act] = out["reward"]
+                terminated[act] = out["terminated"]
+                truncated[act] = out["truncated"]
+                speed[act] = out["touchdown_speed_m_s"]
+                miss[act] = out["miss_distance_m"]
+                success[act] = out["is_success"]
+            for i in reset_idx:
+                self._reset_one(int(i), None)
+        self._autoreset = terminated | truncated
+        b = self._batch
+        obs = self._task.observation(b.y, b.t_nd * self._task.time_ref_s)
+        return obs, reward, terminated, truncated, self._info(speed, miss, success)
+
+    def _info(self, speed, miss, success) -> dict:
+        b = self._batch
+        task = self._task
+        n = self.num_envs
+        info = {
+            "fuel_used_kg": (b.m_start_nd - b.y[:, -1]) * task.mass_ref_kg,
+            "is_success": success,
+            "altitude_m": task.altitude_m(b.y),
+            "time_s": b.t_nd * task.time_ref_s,
+        }
+        mask = np.ones(n, dtype=bool)
+        for k in list(info):
+            info["_" + k] = mask
+        # Gymnasium's vector-info convention: "_key" marks the sub-envs where "key" is defined
+        # (touchdown speed after a touchdown; miss distance at the end of a pinpoint episode).
+        info["touchdown_speed_m_s"] = np.where(np.isnan(speed), 0.0, speed)
+        info["_touchdown_speed_m_s"] = ~np.isnan(speed)
+        if task.has_target:
+            info["miss_distance_m"] = np.where(np.isnan(miss), 0.0, miss)
+            info["_miss_distance_m"] = ~np.isnan(miss)
+        return info
+
+
+def box(low, high) -> spaces.Box:
+    """float32 Box from bound lists."""
+    return spaces.Box(np.asarray(low, dtype=np.float32), np.asarray(high, dtype=np.float32),
+                      dtype=np.float32)

@@ -1,0 +1,310 @@
+"""``LunarPinpointLanding-v0``: 3D pinpoint landing on a rotating Moon ([001] Peng et al. 2012).
+
+Public helpers: :func:`angles_from_action`, :func:`action_from_angles`,
+:class:`LunarPinpointLandingEnv` and :class:`LunarPinpointLandingVectorEnv` (``scenario``,
+``state_nd``, ``t_s``, ``observation_from_state``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import dynamics as dyn
+from .. import integrators as integ
+from ..scenarios import PinpointScenario, get_scenario
+from ._base import LanderEnv, LanderVectorEnv, box
+from ._core import fall_steps
+
+__all__ = ["LunarPinpointLandingEnv", "LunarPinpointLandingVectorEnv", "angles_from_action",
+           "action_from_angles"]
+
+_PENG = get_scenario("peng2012")
+
+
+def angles_from_action(action, alpha_bounds_rad: tuple[float, float] = _PENG.alpha_bounds_rad,
+                       beta_bounds_rad: tuple[float, float] = _PENG.beta_bounds_rad
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Thrust elevation α and azimuth β (rad) from actions (..., 2) in [-1, 1].
+
+    Affine: a = −1 → lower bound, a = +1 → upper bound (defaults: [001]'s α ∈ [−50°, 40°],
+    β ∈ [130°, 220°]; β = 180° brakes along the track). Out-of-range actions are clipped.
+    """
+    a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
+    lo_a, hi_a = alpha_bounds_rad
+    lo_b, hi_b = beta_bounds_rad
+    return (lo_a + 0.5 * (a[..., 0] + 1.0) * (hi_a - lo_a),
+            lo_b + 0.5 * (a[..., 1] + 1.0) * (hi_b - lo_b))
+
+
+def action_from_angles(alpha_rad, beta_rad,
+                       alpha_bounds_rad: tuple[float, float] = _PENG.alpha_bounds_rad,
+                       beta_bounds_rad: tuple[float, float] = _PENG.beta_bounds_rad
+                       ) -> np.ndarray:
+    """Inverse of :func:`angles_from_action`: actions (..., 2), clipped to [-1, 1]."""
+    lo_a, hi_a = alpha_bounds_rad
+    lo_b, hi_b = beta_bounds_rad
+    a0 = 2.0 * (np.asarray(alpha_rad, dtype=np.float64) - lo_a) / (hi_a - lo_a) - 1.0
+    a1 = 2.0 * (np.asarray(beta_rad, dtype=np.float64) - lo_b) / (hi_b - lo_b) - 1.0
+    return np.clip(np.stack([a0, a1], axis=-1), -1.0, 1.0)
+
+
+class _PinpointTask:
+    """Everything scenario-specific of the pinpoint env (picklable)."""
+
+    has_target = True
+    model = integ.MOON3D
+
+    def __init__(self, scenario: str | PinpointScenario = "peng2012", dt_s: float = 1.0,
+                 substeps: int = 4, time_limit_s: float | None = None,
+                 throttle_channel: bool = False, success_speed_m_s: float = 5.0,
+                 success_miss_m: float = 500.0, max_fall_s: float | None = None,
+                 cutoff_speed_m_s: float = 20.0) -> None:
+        sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
+        if not isinstance(sc, PinpointScenario):
+            raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not a pinpoint scenario; "
+                             "LunarPinpointLanding-v0 needs a PinpointScenario ('peng2012')")
+        for name, v in (("dt_s", dt_s), ("success_speed_m_s", success_speed_m_s),
+                        ("success_miss_m", success_miss_m), ("cutoff_speed_m_s",
+                                                             cutoff_speed_m_s)):
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} = {v!r} must be finite and > 0")
+        if int(substeps) < 1:
+            raise ValueError(f"substeps = {substeps!r} must be >= 1")
+        self.scenario = sc
+        self.scaling = s = sc.scaling()
+        self.params = sc.params(s)
+        self.params_array = self.params.as_array()
+        self.plane_normal = np.asarray(self.params.plane_normal)
+        self.dt_s = float(dt_s)
+        self.substeps = int(substeps)
+        self.dt_nd = float(s.time_nd(self.dt_s))
+        self.h_nd = self.dt_nd / self.substeps
+        self.time_limit_s = float(time_limit_s if time_limit_s is not None
+                                  else 1.5 * sc.tf_bounds_s[1])
+        if not self.time_limit_s >= self.dt_s:
+            raise ValueError(f"time_limit_s = {time_limit_s!r} must be >= dt_s = {dt_s!r}")
+        self.max_fall_s = float(max_fall_s if max_fall_s is not None else self.time_limit_s)
+        self.n_fall = fall_steps(self.max_fall_s, self.dt_s / self.substeps)
+        self.throttle_channel = bool(throttle_channel)
+        self.success_speed_m_s = float(success_speed_m_s)
+        self.success_miss_m = float(success_miss_m)
+        self.cutoff_speed_m_s = float(cutoff_speed_m_s)
+        self.surface_radius_nd = 1.0 * float(s.length_nd(sc.body.radius_m))
+        # terminal gate: the sphere through the target ([001] ends at hf = 2 km above it)
+        self.r_stop_nd = float(s.length_nd(sc.body.radius_m + sc.target.altitude_m))
+        self.target_nd = s.length_nd(sc.target_position_m())
+        self.dry_mass_nd = float(s.mass_nd(sc.vehicle.dry_mass_kg))
+        self.mass_ref_kg = s.mass_kg
+        self.time_ref_s = s.time_s
+        self.length_ref_m = s.length_m
+        self.velocity_ref_m_s = s.velocity_m_s
+        self.propellant_ref_kg = sc.vehicle.mass_kg - sc.vehicle.dry_mass_kg
+        self.prop_nominal_nd = float(s.mass_nd(sc.vehicle.mass_kg)) - self.dry_mass_nd
+        self.altitude_scale_m = max(sc.initial.altitude_m - sc.target.altitude_m, 1.0)
+        r0 = s.length_nd(sc.initial_position_velocity_m()[0])
+        self.range_scale_m = max(float(np.linalg.norm(self.target_nd - r0)) * s.length_m, 1.0)
+        self.speed_scale_m_s = max(math.sqrt(sc.initial.u_m_s ** 2 + sc.initial.v_m_s ** 2
+                                             + sc.initial.w_m_s ** 2), 1.0)
+        n_act = 3 if self.throttle_channel else 2
+        self.action_space = box([-1.0] * n_act, [1.0] * n_act)
+        self.obs_low = np.array([0.0, -3.0, -3.0, -3.0, -20.0, -2.0, -20.0, 0.0, 0.0])
+        self.obs_high = np.array([20.0, 3.0, 3.0, 3.0, 20.0, 2.0, 20.0, 1.5, 2.0])
+        self.observation_space = box(self.obs_low, self.obs_high)
+
+    # -- mapping --------------------------------------------------------------------------------
+    def controls_from_actions(self, a: np.ndarray) -> np.ndarray:
+        u = np.empty((len(a), 3))
+        u[:, 0], u[:, 1] = angles_from_action(a[:, :2], self.scenario.alpha_bounds_rad,
+                                              self.scenario.beta_bounds_rad)
+        u[:, 2] = 0.5 * (np.clip(a[:, 2], -1.0, 1.0) + 1.0) if self.throttle_channel else 1.0
+        return u
+
+    def _frame(self, y: np.ndarray):
+        n = self.plane_normal
+        f = dyn.orbital_frame(y[:, 0], y[:, 1], y[:, 2], n[0], n[1], n[2])
+        return (np.stack(f[0:3], axis=1), np.stack(f[3:6], axis=1), np.stack(f[6:9], axis=1))
+
+    def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        xr, yt, zn = self._frame(y)
+        pos = y[:, 0:3]
+        vel = y[:, 3:6]
+        d = self.target_nd[None, :] - pos
+        L, V = self.length_ref_m, self.velocity_ref_m_s
+        r = np.sqrt(np.sum(pos * pos, axis=1))
+        obs = np.empty((len(y), 9))
+        obs[:, 0] = (r - self.r_stop_nd) * (L / self.altitude_scale_m)
+        obs[:, 1] = np.sum(d * xr, axis=1) * (L / self.range_scale_m)
+        obs[:, 2] = np.sum(d * yt, axis=1) * (L / self.range_scale_m)
+        obs[:, 3] = np.sum(d * zn, axis=1) * (L / self.range_scale_m)
+        obs[:, 4] = np.sum(vel * xr, axis=1) * (V / (0.1 * self.speed_scale_m_s))
+        obs[:, 5] = np.sum(vel * yt, axis=1) * (V / self.speed_scale_m_s)
+        obs[:, 6] = np.sum(vel * zn, axis=1) * (V / (0.1 * self.speed_scale_m_s))
+        obs[:, 7] = (y[:, 6] - self.dry_mass_nd) / self.prop_nominal_nd
+        obs[:, 8] = t_s / self.time_limit_s
+        np.clip(obs, self.obs_low, self.obs_high, out=obs)
+        return obs.astype(np.float32)
+
+    def speed_m_s(self, y: np.ndarray) -> np.ndarray:
+        """Speed relative to the rotating Moon (m/s), shape (B,)."""
+        return np.sqrt(np.sum(y[:, 3:6] ** 2, axis=1)) * self.velocity_ref_m_s
+
+    def altitude_m(self, y: np.ndarray) -> np.ndarray:
+        """Altitude above the reference sphere R_L (m) (the target is 2 km above it)."""
+        return (np.sqrt(np.sum(y[:, 0:3] ** 2, axis=1)) - self.surface_radius_nd) \
+            * self.length_ref_m
+
+    def landing_metrics(self, y: np.ndarray, touched_down: np.ndarray):
+        """Speed at the gate (m/s) and miss distance (m): distance from the target to the
+        lander's position projected radially onto the gate sphere. A lander that did not reach
+        the gate is charged with its energy-conservation speed at the gate radius."""
+        pos = y[:, 0:3]
+        r = np.sqrt(np.sum(pos * pos, axis=1))
+        v2 = np.sum(y[:, 3:6] ** 2, axis=1)
+        est = np.sqrt(np.maximum(v2 + 2.0 * (1.0 / self.r_stop_nd - 1.0 / r), 0.0))
+        speed = np.where(touched_down, np.sqrt(v2), est) * self.velocity_ref_m_s
+        on_gate = pos * (self.r_stop_nd / r)[:, None]
+        miss = np.sqrt(np.sum((on_gate - self.target_nd[None, :]) ** 2, axis=1)) \
+            * self.length_ref_m
+        return speed, miss
+
+    # -- initial states -------------------------------------------------------------------------
+    def initial_state(self, rng: np.random.Generator, options: dict | None) -> np.ndarray:
+        sc = self.scenario
+        s = self.scaling
+        options = options or {}
+        if options.get("state_nd") is not None:
+            y = np.asarray(options["state_nd"], dtype=np.float64).reshape(-1)
+        elif options.get("state_si") is not None:
+            si = np.asarray(options["state_si"], dtype=np.float64).reshape(-1)
+            if si.shape != (7,):
+                raise ValueError(f"state_si {si!r} must be (x, y, z m, vx, vy, vz m/s, m kg)")
+            y = np.concatenate([s.length_nd(si[0:3]), s.velocity_nd(si[3:6]),
+                                [s.mass_nd(si[6])]])
+        elif options.get("nominal"):
+            y = sc.state_nd(scaling=s)
+        else:
+            y = sc.state_nd(sc.sample_initial(rng, 1)[0], scaling=s)
+        if y.shape != (7,) or not np.isfinite(y).all():
+            raise ValueError(f"initial state {y!r} must be 7 finite numbers (x, y, z, vx, vy, "
+                             "vz, m)")
+        if not (np.linalg.norm(y[0:3]) > self.r_stop_nd and y[6] > self.dry_mass_nd):
+            raise ValueError(f"initial state {y!r} must start above the terminal gate "
+                             f"(r > {self.r_stop_nd}) with fuel (m > {self.dry_mass_nd})")
+        return y
+
+    # -- rendering ------------------------------------------------------------------------------
+    def track(self, ys: np.ndarray) -> dict:
+        """Ground track (longitude, latitude in degrees), altitude (km), target (deg)."""
+        t = self.scenario.target
+        r = np.sqrt(np.sum(ys[:, 0:3] ** 2, axis=1))
+        return {"longitude_deg": np.degrees(np.arctan2(ys[:, 1], ys[:, 0])),
+                "latitude_deg": np.degrees(np.arcsin(ys[:, 2] / r)),
+                "altitude_km": self.altitude_m(ys) / 1e3,
+                "target_deg": (math.degrees(t.longitude_rad), math.degrees(t.latitude_rad)),
+                "target_altitude_km": t.altitude_m / 1e3}
+
+
+_DOC = """
+
+    ## Description
+
+    Pinpoint powered descent on a rotating Moon ([001] Peng et al. 2012): from 15 km altitude at
+    (10°E, 0°N), 1713.8 m/s along a plane inclined 30°, a constant-thrust (1500 N), steer-only
+    lander must reach the point 2 km above (25°E, 9°N) at rest, with as little propellant as
+    possible. Dynamics: the shared Moon-fixed Cartesian model
+    (:func:`lunar_env.dynamics.moon3d_eom`,
+    central gravity, Coriolis and centrifugal terms) integrated by the compiled RK4 of
+    :mod:`lunar_env.integrators`; each step holds the action for ``dt_s`` (default 1 s) over
+    ``substeps`` (default 4) RK4 steps.
+
+    ## Action Space
+
+    ``Box(-1, 1, (2,), float32)``: thrust elevation α above the local horizontal and azimuth β
+    of its horizontal projection from the along-track axis (β = 180° brakes), each mapped
+    affinely onto the scenario's bounds (α ∈ [−50°, 40°], β ∈ [130°, 220°] for ``peng2012``;
+    :func:`angles_from_action`). ``throttle_channel=True`` adds a third channel,
+    throttle = (a₂ + 1)/2. Finite out-of-range actions are clipped; NaN/inf raise ``ValueError``
+    and leave the state untouched.
+
+    ## Observation Space
+
+    ``Box(float32, (9,))``; vectors are expressed in the lander's orbital frame (radial x̂,
+    along-track ŷ, cross-track ẑ). h₀ = initial altitude above the gate (13 km), d₀ = initial
+    distance to the target, v₀ = initial speed (1713.8 m/s). Values are clipped to the bounds.
+
+    | Num | Observation                                   | Unit (before scaling) | Min | Max |
+    |-----|-----------------------------------------------|-----------------------|-----|-----|
+    | 0   | altitude above the target gate / h₀           | m                     | 0   | 20  |
+    | 1   | target − lander position, radial / d₀         | m                     | -3  | 3   |
+    | 2   | target − lander position, along-track / d₀    | m                     | -3  | 3   |
+    | 3   | target − lander position, cross-track / d₀    | m                     | -3  | 3   |
+    | 4   | velocity rel. to the target u (radial)/(0.1 v₀)| m/s                  | -20 | 20  |
+    | 5   | velocity v (along-track) / v₀                 | m/s                   | -2  | 2   |
+    | 6   | velocity w (cross-track) / (0.1 v₀)           | m/s                   | -20 | 20  |
+    | 7   | propellant left / nominal propellant          | kg                    | 0   | 1.5 |
+    | 8   | time / time limit                             | s                     | 0   | 2   |
+
+    (The target is fixed on the Moon, so the target-relative velocity is the velocity relative
+    to the rotating Moon.)
+
+    ## Rewards
+
+    Each step −(propellant burnt)/(propellant capacity, 300 kg). At the end
+    −log(1 + v/1 m/s) − log(1 + miss/100 m), with v the speed at the terminal gate and miss
+    the distance from the target to the gate crossing (for a truncated episode: the
+    energy-conservation speed at the gate radius and the distance of the lander's radial
+    projection onto the gate sphere).
+
+    ## Starting State
+
+    The scenario's dispersion (altitude ±500 m, speed ±5 m/s, mass ±10 kg, longitude and
+    latitude ±0.05°). ``options={"nominal": True}``, ``{"state_nd": 7 normalised numbers}`` or
+    ``{"state_si": (x, y, z m, vx, vy, vz m/s, m kg)}`` (Moon-fixed) pin the start.
+
+    ## Episode End
+
+    [001] ends at hf = 2 km above the target with zero relative velocity. Here the terminal
+    condition is physical: the *terminal gate* is the sphere of radius R_L + 2 km through the
+    target. The engine cuts off at a speed minimum at or below ``cutoff_speed_m_s`` (default
+    20 m/s) or at propellant exhaustion; the lander then falls freely to the gate (integrated
+    in the same step).
+
+    1. Termination: crossing the gate (located inside the step). Success: speed at the gate
+       <= ``success_speed_m_s`` (5 m/s) and miss distance <= ``success_miss_m`` (500 m).
+    2. Truncation: time >= ``time_limit_s`` (default 1200 s = 1.5 × 800 s) or a free fall that
+       does not reach the gate within ``max_fall_s``.
+
+    ``info``: ``fuel_used_kg``, ``touchdown_speed_m_s`` (speed at the gate; NaN before),
+    ``miss_distance_m`` (NaN before the end), ``is_success``, ``altitude_m`` (above R_L),
+    ``time_s``.
+
+    ## Arguments
+
+    As ``LunarSoftLanding-v0`` (``scenario`` default "peng2012", ``dt_s``, ``substeps``,
+    ``time_limit_s``, ``throttle_channel``, ``success_speed_m_s``, ``max_fall_s``,
+    ``cutoff_speed_m_s``, ``render_mode``) plus ``success_miss_m`` (500.0).
+
+    >>> import gymnasium as gym
+    >>> import lunar_env
+    >>> env = gym.make("LunarPinpointLanding-v0")
+    >>> obs, info = env.reset(seed=0)
+    >>> obs.shape
+    (9,)
+
+    ## Version History
+
+    - v0: initial version.
+    """
+
+
+class LunarPinpointLandingEnv(LanderEnv):
+    __doc__ = "Pinpoint landing on a rotating Moon (single env)." + _DOC
+    _task_cls = _PinpointTask
+
+
+class LunarPinpointLandingVectorEnv(LanderVectorEnv):
+    __doc__ = ("Native vector version of :class:`LunarPinpointLandingEnv` (one compiled call "
+               "per step, autoreset NEXT_STEP, sub-env i seeded with seed + i).\n" + _DOC)
+    _task_cls = _PinpointTask
