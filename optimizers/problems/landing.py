@@ -1,0 +1,351 @@
+"""Planar minimum-fuel powered descent as a pygmo-style problem ([000] Zhu & Xu 2007).
+
+Decision vector (paper 000, §3 and eq. 24–25), ``dim = n_nodes + 1``:
+
+=========  ===========================  ======  ==========================================
+index      meaning                      unit    bounds (paper 000)
+=========  ===========================  ======  ==========================================
+0 … n−1    thrust angle φ_i at node i   deg     [0, 9·(i+1)]   (eq. 24–25, "×9")
+n          final time tf                s       [500, 700]     (eq. 24–25; scenario bounds)
+=========  ===========================  ======  ==========================================
+
+The node angles sit at ``t_i = i·tf/(n_nodes − 1)`` ([000] eq. 9); a least-squares polynomial
+through them (:class:`optimizers.parameterisations.NodePolynomial`, cubic in [000] eq. 10) is the
+thrust angle φ(t) over [0, tf]. The engine is on at full thrust for the whole of [0, tf] ([000]:
+"F constant"), so the propellant used is ``F·tf/c`` (until the dry mass is reached) and the
+terminal state is the state **at tf**, as in the paper's fitness (eq. 11).
+
+Fitness ``[objective, ceq_vr, ceq_vt, ceq_r]`` (pygmo order; the objective is minimised):
+
+- objective: propellant used (kg) (``objective="fuel"``, default) or ``-m(tf)/m0``
+  (``objective="final_mass"``, the paper's normalised J of eq. 4/8 with the sign flipped);
+- ``ceq_vr = (v(tf) − v_f) / velocity_scale_m_s`` (radial velocity error),
+- ``ceq_vt = (ω(tf) r(tf) − ω_f r_f) / velocity_scale_m_s`` (tangential velocity error),
+- ``ceq_r = (r(tf) − r_f) / radius_scale_m`` (radius error).
+
+With the default scales of 1 m/s and 1 m the constraint values are SI errors, so a constraint
+tolerance of 0.01 means 1 cm/s and 1 cm — the scale at which the paper's results differ.
+
+Integration. The whole population goes through **one** call of
+:func:`lunar_env.integrators.integrate` (compiled batched RK4, ``n_steps`` equal steps of
+tf/n_steps, no events: the paper evaluates the state at tf). ``n_steps = 100`` (≈6 s steps).
+Measured against the DOP853 reference (rtol 1e-12) at the cubic-parameterised optimum
+(tf = 604.52 s): RK4 error of the terminal radial velocity 6e-8 m/s, of the radius 7e-5 m
+(50 steps: 1e-6 m/s, 1e-3 m; 25 steps: 2e-5 m/s, 0.016 m; fourth-order convergence), and of
+the fuel 0 (it depends on tf only). That is four orders below the 0.01 m/s / 0.1 m at which the
+paper's runs differ; ``tests/test_landing_problem.py`` checks it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lunar_env import get_scenario
+from lunar_env.integrators import PLANAR, integrate
+from lunar_env.scenarios import PlanarScenario
+
+from ..common.problem import Problem
+from ..common.result import Trajectory
+from ..parameterisations import NodePolynomial
+
+__all__ = ["PlanarLandingProblem", "PenalisedProblem", "DEFAULT_N_STEPS"]
+
+DEFAULT_N_STEPS = 100
+
+_OBJECTIVES = ("fuel", "final_mass")
+
+
+class PlanarLandingProblem(Problem):
+    """Minimum-fuel soft landing with node-angle parameterisation ([000] Zhu & Xu 2007).
+
+    Parameters
+    ----------
+    scenario : str or PlanarScenario
+        Planar scenario (default ``"zhu2007"``). Its ``tf_bounds_s`` are the tf bounds.
+    parameterisation : NodePolynomial, optional
+        Node angles + least-squares polynomial; default ``NodePolynomial(10, 3)`` ([000]).
+    n_steps : int
+        RK4 steps over [0, tf] (default :data:`DEFAULT_N_STEPS`, see the module docstring).
+    objective : {"fuel", "final_mass"}
+        ``"fuel"``: propellant used (kg); ``"final_mass"``: ``−m(tf)/m0``.
+    initial_state_si : array_like, shape (5,), optional
+        (r m, v_r m/s, θ rad, v_t m/s, m kg); default the scenario's nominal initial state.
+    node_upper_deg : array_like, shape (n_nodes,), optional
+        Upper bounds of the node angles (deg). Default ``90·(i+1)/n_nodes``, which is
+        [000] eq. 25 (``9·(i+1)``) for 10 nodes. Lower bounds are 0 ([000] eq. 24).
+    node_lower_deg : array_like, shape (n_nodes,), optional
+    tf_bounds_s : (float, float), optional
+        Default: the scenario's (``(500, 700)`` for zhu2007, [000] eq. 24–25).
+    velocity_scale_m_s, radius_scale_m : float
+        Divisors of the equality constraints (default 1: constraints in m/s and m).
+
+    Raises
+    ------
+    ValueError
+        On an unknown objective, a non-planar scenario, inconsistent bound shapes or
+        non-positive scales / step counts.
+    """
+
+    def __init__(self, scenario: str | PlanarScenario = "zhu2007",
+                 parameterisation: NodePolynomial | None = None, n_steps: int = DEFAULT_N_STEPS,
+                 objective: str = "fuel", initial_state_si=None, node_upper_deg=None,
+                 node_lower_deg=None, tf_bounds_s: tuple[float, float] | None = None,
+                 velocity_scale_m_s: float = 1.0, radius_scale_m: float = 1.0) -> None:
+        super().__init__()
+        sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
+        if getattr(sc, "model", None) != "planar":
+            raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not planar; "
+                             "PlanarLandingProblem needs a PlanarScenario (e.g. 'zhu2007')")
+        if objective not in _OBJECTIVES:
+            raise ValueError(f"objective = {objective!r}; allowed: {_OBJECTIVES}")
+        n_steps = int(n_steps)
+        if n_steps < 1:
+            raise ValueError(f"n_steps = {n_steps} must be >= 1")
+        if not (velocity_scale_m_s > 0 and radius_scale_m > 0):
+            raise ValueError("velocity_scale_m_s and radius_scale_m must be > 0, got "
+                             f"{velocity_scale_m_s!r}, {radius_scale_m!r}")
+        self.scenario = sc
+        self.parameterisation = parameterisation or NodePolynomial(10, 3)
+        self.n_steps = n_steps
+        self.objective = objective
+        self.velocity_scale_m_s = float(velocity_scale_m_s)
+        self.radius_scale_m = float(radius_scale_m)
+        self.scaling = sc.scaling()
+        self.params = sc.params(self.scaling)
+        if initial_state_si is None:
+            self.y0_nd = sc.state_nd(scaling=self.scaling)
+        else:
+            y = np.asarray(initial_state_si, dtype=np.float64)
+            if y.shape != (5,) or not np.all(np.isfinite(y)):
+                raise ValueError(f"initial_state_si must be 5 finite SI values (r, vr, θ, vt, m); "
+                                 f"got {initial_state_si!r}")
+            self.y0_nd = sc.si_to_nd(y, self.scaling)
+        self.dry_mass_nd = float(self.scaling.mass_nd(sc.vehicle.dry_mass_kg))
+        n = self.parameterisation.n_nodes
+        lo = np.zeros(n) if node_lower_deg is None else np.asarray(node_lower_deg, float)
+        hi = (90.0 * np.arange(1, n + 1) / n if node_upper_deg is None
+              else np.asarray(node_upper_deg, float))
+        tfb = sc.tf_bounds_s if tf_bounds_s is None else tuple(map(float, tf_bounds_s))
+        if lo.shape != (n,) or hi.shape != (n,) or not np.all(lo <= hi):
+            raise ValueError(f"node bounds must have shape ({n},) with lower <= upper; got "
+                             f"{lo!r}, {hi!r}")
+        if not 0.0 < tfb[0] <= tfb[1]:
+            raise ValueError(f"tf_bounds_s = {tfb!r} must satisfy 0 < low <= high")
+        self._lb = np.concatenate([lo, [tfb[0]]])
+        self._ub = np.concatenate([hi, [tfb[1]]])
+        t = sc.target
+        self.target_radius_nd = float(self.scaling.length_nd(t.radius_m))
+        self.target_radial_velocity_nd = float(self.scaling.velocity_nd(t.radial_velocity_m_s))
+        self.target_tangential_velocity_nd = float(
+            self.scaling.velocity_nd(t.tangential_velocity_m_s))
+
+    # ---- pygmo UDP surface ----------------------------------------------------------------
+    def get_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._lb.copy(), self._ub.copy()
+
+    def get_nec(self) -> int:
+        return 3
+
+    def get_name(self) -> str:
+        return f"PlanarLandingProblem[{self.scenario.name}]"
+
+    # ---- core -----------------------------------------------------------------------------
+    def control(self, X: np.ndarray):
+        """Control law (normalised time) for decision vectors ``X`` (batch, dim)."""
+        X = np.atleast_2d(np.asarray(X, dtype=np.float64))
+        tf_nd = self.scaling.time_nd(X[:, -1])
+        return self.parameterisation.control(np.deg2rad(X[:, :-1]), 0.0, tf_nd), tf_nd
+
+    def propagate(self, X: np.ndarray, *, record: bool = False, n_steps: int | None = None):
+        """Integrate every candidate to its tf in one batched RK4 call.
+
+        Returns the :class:`lunar_env.integrators.Propagation` (normalised units).
+        """
+        X = np.atleast_2d(np.asarray(X, dtype=np.float64))
+        control, tf_nd = self.control(X)
+        n = self.n_steps if n_steps is None else int(n_steps)
+        y0 = np.broadcast_to(self.y0_nd, (X.shape[0], 5))
+        return integrate(PLANAR, y0, t0_nd=0.0, dt_nd=tf_nd / n, n_steps=n, control=control,
+                         params=self.params, dry_mass_nd=self.dry_mass_nd, events=(),
+                         record=record)
+
+    def terminal_errors_from_state(self, y_end_nd: np.ndarray) -> dict[str, np.ndarray]:
+        """SI terminal errors from normalised end states (batch, 5).
+
+        Keys: ``radial_velocity_m_s``, ``tangential_velocity_m_s``, ``speed_m_s`` (magnitude of
+        the velocity error), ``radius_m`` (r(tf) − r_f), each shape (batch,).
+        """
+        y = np.atleast_2d(y_end_nd)
+        s = self.scaling
+        dvr = (y[:, 1] - self.target_radial_velocity_nd) * s.velocity_m_s
+        dvt = (y[:, 0] * y[:, 3] - self.target_tangential_velocity_nd) * s.velocity_m_s
+        dr = (y[:, 0] - self.target_radius_nd) * s.length_m
+        return {"radial_velocity_m_s": dvr, "tangential_velocity_m_s": dvt,
+                "speed_m_s": np.hypot(dvr, dvt), "radius_m": dr}
+
+    def _batch_fitness(self, X: np.ndarray) -> np.ndarray:
+        prop = self.propagate(X)
+        y = prop.y_end
+        if not np.all(np.isfinite(y)):
+            bad = X[~np.all(np.isfinite(y), axis=1)][0]
+            raise FloatingPointError(f"integration of x = {bad!r} produced a non-finite state; "
+                                     "check the bounds and n_steps")
+        err = self.terminal_errors_from_state(y)
+        out = np.empty((X.shape[0], 4))
+        if self.objective == "fuel":
+            out[:, 0] = (self.y0_nd[4] - y[:, 4]) * self.scaling.mass_kg
+        else:
+            out[:, 0] = -y[:, 4]
+        out[:, 1] = err["radial_velocity_m_s"] / self.velocity_scale_m_s
+        out[:, 2] = err["tangential_velocity_m_s"] / self.velocity_scale_m_s
+        out[:, 3] = err["radius_m"] / self.radius_scale_m
+        return out
+
+    def gradient(self, x: np.ndarray, rel_step: float = 1e-6) -> np.ndarray:
+        """Central finite-difference Jacobian of :meth:`fitness`, one batched call.
+
+        Returns
+        -------
+        ndarray, shape (n_f, dim)
+        """
+        x = np.asarray(x, dtype=np.float64)
+        h = rel_step * np.maximum(1.0, np.abs(x))
+        E = np.diag(h)
+        F = self.batch_fitness(np.concatenate([x + E, x - E]))
+        d = x.size
+        return ((F[:d] - F[d:]) / (2 * h[:, None])).T
+
+    # ---- penalties for GAs ----------------------------------------------------------------
+    def fuel_kg_from_fitness(self, F: np.ndarray) -> np.ndarray:
+        """Propellant (kg) from rows of :meth:`batch_fitness`, shape (batch,)."""
+        F = np.atleast_2d(F)
+        if self.objective == "fuel":
+            return F[:, 0].copy()
+        return (self.y0_nd[4] + F[:, 0]) * self.scaling.mass_kg
+
+    def penalty_fitness(self, F: np.ndarray, sigma_velocity: float, sigma_radius: float,
+                        units: str = "normalised") -> np.ndarray:
+        """Penalised fitness of [000] eq. (11) (to be **maximised**).
+
+        ``units="normalised"`` (default, the paper's §2 units):
+        ``f = −σ1·sqrt(Δv² + Δv_t²)/v_ref − σ2·|Δr|/L + m(tf)/m0``;
+        ``units="si"``: the same expression in m/s, m and kg,
+        ``f = −σ1·sqrt(Δv² + Δv_t²)[m/s] − σ2·|Δr|[m] + m(tf)[kg]`` (an alternative reading of
+        eq. 11, under which the paper's T0 = 10000 matches the size of the early penalties).
+
+        Parameters
+        ----------
+        F : ndarray, shape (batch, 4)
+            Rows of :meth:`batch_fitness`.
+        sigma_velocity, sigma_radius : float
+            σ1 and σ2 of eq. (11).
+        units : {"normalised", "si"}
+
+        Returns
+        -------
+        ndarray, shape (batch,)
+        """
+        F = np.atleast_2d(F)
+        s = self.scaling
+        dv_m_s = np.hypot(F[:, 1], F[:, 2]) * self.velocity_scale_m_s
+        dr_m = np.abs(F[:, 3]) * self.radius_scale_m
+        m_f_kg = self.y0_nd[4] * s.mass_kg - self.fuel_kg_from_fitness(F)
+        if units == "normalised":
+            return (-sigma_velocity * dv_m_s / s.velocity_m_s - sigma_radius * dr_m / s.length_m
+                    + m_f_kg / s.mass_kg)
+        if units == "si":
+            return -sigma_velocity * dv_m_s - sigma_radius * dr_m + m_f_kg
+        raise ValueError(f"units = {units!r}; use 'normalised' or 'si'")
+
+    # ---- decoding -------------------------------------------------------------------------
+    def thrust_angle_rad(self, x: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Fitted thrust angle φ(t) (rad) of one decision vector at times ``t_s`` (s)."""
+        x = np.asarray(x, dtype=np.float64)
+        s = np.asarray(t_s, dtype=np.float64) / x[-1]
+        return self.parameterisation.evaluate(np.deg2rad(x[None, :-1]), s)[0]
+
+    def decode(self, x: np.ndarray, n_steps: int | None = None) -> dict:
+        """Physical meaning of one decision vector.
+
+        Returns
+        -------
+        dict with
+            ``tf_s``; ``node_times_s``, ``node_angles_rad`` (shape (n_nodes,));
+            ``coefficients_rad`` (shape (degree+1,), ascending powers of t in s);
+            ``control``: the :class:`PiecewisePolynomial` (normalised time);
+            ``trajectory``: :class:`Trajectory` in SI on the RK4 grid (``radius_m``,
+            ``radial_velocity_m_s``, ``theta_rad``, ``angular_rate_rad_s``,
+            ``tangential_velocity_m_s``, ``mass_kg``, ``altitude_m``; control ``phi_rad``,
+            ``throttle``); ``fuel_kg``; ``terminal_errors`` (SI floats).
+        """
+        x = np.asarray(x, dtype=np.float64)
+        if x.shape != (self.dim,):
+            raise ValueError(f"x has shape {x.shape}; expected ({self.dim},)")
+        prop = self.propagate(x[None, :], record=True, n_steps=n_steps)
+        s = self.scaling
+        n = int(prop.n_records[0])
+        st = prop.states[0, :n]
+        t_s = prop.times[0, :n] * s.time_s
+        phi = self.thrust_angle_rad(x, t_s)
+        burning = np.isnan(prop.t_burnout[0]) | (prop.times[0, :n] < prop.t_burnout[0])
+        traj = Trajectory(
+            t_s=t_s,
+            states={
+                "radius_m": st[:, 0] * s.length_m,
+                "radial_velocity_m_s": st[:, 1] * s.velocity_m_s,
+                "theta_rad": st[:, 2].copy(),
+                "angular_rate_rad_s": st[:, 3] / s.time_s,
+                "tangential_velocity_m_s": st[:, 0] * st[:, 3] * s.velocity_m_s,
+                "mass_kg": st[:, 4] * s.mass_kg,
+                "altitude_m": st[:, 0] * s.length_m - self.scenario.surface_radius_m,
+            },
+            controls={"phi_rad": phi, "throttle": burning.astype(float)},
+        )
+        err = {k: float(v[0]) for k, v in self.terminal_errors_from_state(prop.y_end).items()}
+        tf_s = float(x[-1])
+        a = self.parameterisation.fit(np.deg2rad(x[None, :-1]))[0]
+        return {
+            "tf_s": tf_s,
+            "node_times_s": self.parameterisation.node_times(0.0, tf_s)[0],
+            "node_angles_rad": np.deg2rad(x[:-1]),
+            "coefficients_rad": a / tf_s ** np.arange(a.size),
+            "control": self.control(x[None, :])[0],
+            "trajectory": traj,
+            "fuel_kg": float((self.y0_nd[4] - prop.y_end[0, 4]) * s.mass_kg),
+            "terminal_errors": err,
+        }
+
+
+class PenalisedProblem(Problem):
+    """Unconstrained wrapper: objective = −(penalised fitness of [000] eq. 11), no constraints.
+
+    For algorithms without constraint handling (pygmo's ``sade``, ``cmaes``, ``pso``): the
+    same penalty as ASAGA uses, with *fixed* weights. The default weights are ASAGA's final
+    ones (T = Tmax in [000]: σ2 = 10, σ1 = 5σ2 = 50), i.e. the fitness ASAGA's result is judged
+    by at the end of its run.
+
+    Parameters
+    ----------
+    problem : PlanarLandingProblem
+    sigma_velocity, sigma_radius : float
+    """
+
+    def __init__(self, problem: PlanarLandingProblem, sigma_velocity: float = 50.0,
+                 sigma_radius: float = 10.0) -> None:
+        super().__init__()
+        self.problem = problem
+        self.sigma_velocity = float(sigma_velocity)
+        self.sigma_radius = float(sigma_radius)
+
+    def get_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.problem.get_bounds()
+
+    def get_name(self) -> str:
+        return f"Penalised[{self.problem.get_name()}]"
+
+    def _batch_fitness(self, X: np.ndarray) -> np.ndarray:
+        F = self.problem.batch_fitness(X)
+        return -self.problem.penalty_fitness(F, self.sigma_velocity, self.sigma_radius)[:, None]
+
+    def decode(self, x: np.ndarray):
+        return self.problem.decode(x)
