@@ -69,7 +69,8 @@ terminal errors in SI; ``"doubling"`` re-integrates the state–costate system w
 
 Public API
 ----------
-:func:`solve_planar_min_fuel`, :class:`PontryaginSolution`, :class:`PontryaginGuess`.
+:func:`solve_planar_min_fuel`, :func:`solve_many`, :class:`PontryaginSolution`,
+:class:`PontryaginGuess`, :class:`PontryaginExpert`.
 
 >>> from lunar_env import get_scenario
 >>> sol = solve_planar_min_fuel(get_scenario("zhu2007"))   # doctest: +SKIP
@@ -96,8 +97,9 @@ from .planar_collocation import (
 )
 
 __all__ = [
-    "PontryaginGuess", "PontryaginSolution", "solve_planar_min_fuel", "optimal_thrust_angle",
-    "hamiltonian", "replay_reference",
+    "PontryaginGuess", "PontryaginSolution", "PontryaginExpert", "solve_planar_min_fuel",
+    "solve_many", "nominal_guess", "nearest_neighbour_order", "optimal_thrust_angle",
+    "hamiltonian", "replay_reference", "STATUS_OPTIMAL", "STATUS_HOLD", "STATUS_FALLBACK",
 ]
 
 # Index of the state-costate vector z = (x, λ) (10,).
@@ -154,7 +156,11 @@ class _System:
                           zf[dyn.R] * zf[dyn.OMEGA] - tgt[2], zf[_LAM + dyn.M], self.ham(zf))
 
     def shooting(self, n_steps: int, with_jacobian: bool):
-        """``(p, x0, tgt) -> res (5,) [, jac (5, 5)]``, RK4 unrolled as SX (fast to evaluate)."""
+        """RK4 unrolled as SX (fast to evaluate).
+
+        With the Jacobian: ``(p, x0, tgt) -> (res (5,), jac (5, 5))``; without:
+        ``(p, x0, tgt) -> (res (5,), Z (10, n_steps + 1))`` (the grid).
+        """
         key = (n_steps, with_jacobian)
         if key not in self._shooting:
             import casadi as ca
@@ -163,11 +169,13 @@ class _System:
             x0 = ca.SX.sym("x0", 5)
             tgt = ca.SX.sym("tgt", 3)
             z = self.initial(ca, p, x0)
+            zs = [z]
             h = p[4] / n_steps
             for _ in range(n_steps):
                 z = self.step(z, h)
+                zs.append(z)
             res = self.residual_of(ca, z, tgt)
-            outs = [res, ca.jacobian(res, p)] if with_jacobian else [res]
+            outs = [res, ca.jacobian(res, p)] if with_jacobian else [res, ca.horzcat(*zs)]
             self._shooting[key] = ca.Function(f"pmp_shoot_{n_steps}", [p, x0, tgt], outs)
         return self._shooting[key]
 
@@ -333,10 +341,12 @@ class PontryaginSolution:
 
     def _grid(self) -> dict:
         """The fine RK4 grid of the state–costate system and its derivatives (cached)."""
-        if "z" not in self._cache:
+        if "dz" not in self._cache:
             sysm = _system(self.scenario.params())
             p = self.guess.unknowns()
-            z = np.asarray(sysm.grid(self.n_steps)(p, self.x0_nd))
+            z = self._cache.get("z")
+            if z is None:
+                z = np.asarray(sysm.grid(self.n_steps)(p, self.x0_nd))
             rhs, ham, phi = sysm.evaluate(z)
             t = np.linspace(0.0, p[4], self.n_steps + 1)
             self._cache.update(z=z, dz=rhs, H=ham, phi=phi, t=t)
@@ -482,14 +492,24 @@ class _Solver:
         self.tgt = target_nd(scenario)
 
     def run(self, p0, x0, *, tol, max_iter, history):
+        """Newton from ``p0``; returns (p, ‖res‖∞, converged, iterations, Z grid of p)."""
+        grids: dict[bytes, np.ndarray] = {}
+
         def res_fine(p):
-            return np.asarray(self.fine(p, x0, self.tgt)).ravel()
+            res, z = self.fine(p, x0, self.tgt)
+            grids.clear()
+            grids[p.tobytes()] = z
+            return np.asarray(res).ravel()
 
         def jac(p):
             return np.asarray(self.coarse(p, x0, self.tgt)[1])
 
-        return _newton(res_fine, jac, np.asarray(p0, dtype=np.float64), tol=tol,
-                       max_iter=max_iter, history=history)
+        p, nrm, ok, it = _newton(res_fine, jac, np.asarray(p0, dtype=np.float64), tol=tol,
+                                 max_iter=max_iter, history=history)
+        z = grids.get(p.tobytes())
+        if z is None:
+            z = self.fine(p, x0, self.tgt)[1]
+        return p, nrm, ok, it, np.asarray(z)
 
 
 _SOLVERS: dict[tuple, _Solver] = {}
@@ -595,10 +615,13 @@ def solve_planar_min_fuel(
     n_iter = 0
     attempts: list[str] = []
 
+    grid: list[np.ndarray] = []
+
     def attempt(p0, x_start):
         nonlocal n_iter
-        p, nrm, ok, it = solver.run(p0, x_start, tol=tol, max_iter=max_iter, history=history)
+        p, nrm, ok, it, z = solver.run(p0, x_start, tol=tol, max_iter=max_iter, history=history)
         n_iter += it
+        grid[:] = [z]
         return p, nrm, ok and p[4] > 0
 
     p = None
@@ -621,8 +644,10 @@ def solve_planar_min_fuel(
                 break
     if p is None:
         p = np.array([0.0, 0.0, 1.0, 0.0, rocket_equation_tf_nd(scenario, x0)])
+    if not grid or attempts[-1] == "continuation" and not ok:
+        grid[:] = []  # the last grid belongs to an intermediate state of the continuation
     return _finish(scenario, solver, x0, p, nrm, ok, attempts, history, n_iter, check, tol,
-                   t_start)
+                   t_start, grid[0] if grid else None)
 
 
 def _continuation(attempt, g: PontryaginGuess, x0: np.ndarray):
@@ -645,7 +670,7 @@ def _continuation(attempt, g: PontryaginGuess, x0: np.ndarray):
 
 
 def _finish(scenario, solver: _Solver, x0, p, nrm, ok, attempts, history, n_iter, check, tol,
-            t_start) -> PontryaginSolution:
+            t_start, z_grid) -> PontryaginSolution:
     sc = scenario.scaling()
     params = solver.params
     lam0 = np.array([p[0], p[1], 0.0, p[2], p[3]])
@@ -670,9 +695,11 @@ def _finish(scenario, solver: _Solver, x0, p, nrm, ok, attempts, history, n_iter
         n_iter=int(n_iter), residual_nd=float(nrm), final_mass_kg=final_mass_kg,
         x0_nd=np.asarray(x0, float).copy(), history=np.asarray(history), scenario=scenario,
         n_steps=solver.n_steps)
+    if z_grid is not None:
+        sol._cache["z"] = z_grid
     if ok:
-        g = sol._grid()
-        r_min = float(np.min(g["z"][dyn.R])) * sc.length_m
+        z = sol._cache["z"] if z_grid is not None else sol._grid()["z"]
+        r_min = float(np.min(z[dyn.R])) * sc.length_m
         if r_min < scenario.surface_radius_m - 1.0:
             sol.success = False
             depth_m = scenario.surface_radius_m - r_min
@@ -696,7 +723,7 @@ def _errors_si(scenario, xf: np.ndarray) -> dict[str, float]:
 def _terminal_errors(sol: PontryaginSolution, solver: _Solver, check: str) -> dict[str, float]:
     p = sol.guess.unknowns()
     if check == "grid":
-        xf = sol._grid()["z"][:5, -1]
+        xf = sol._cache["z"][:5, -1] if "z" in sol._cache else sol._grid()["z"][:5, -1]
     elif check == "doubling":
         xf = np.asarray(solver.system.grid(2 * solver.n_steps)(p, sol.x0_nd))[:5, -1]
     else:
@@ -721,3 +748,331 @@ def replay_reference(sol: PontryaginSolution, *, rtol: float = 1e-13,
     out = integrate_reference(PLANAR, sol.x0_nd, (0.0, sol.tf_nd), control,
                               sol.scenario.params(), rtol=rtol, atol=atol)
     return out.y[:, -1]
+
+
+# ---------------------------------------------------------------------------------------------
+# Public: batches
+# ---------------------------------------------------------------------------------------------
+
+
+def _check_states(initial_states_si) -> np.ndarray:
+    states = np.asarray(initial_states_si, dtype=np.float64)
+    if states.ndim != 2 or states.shape[1] != 5:
+        raise ValueError(f"initial_states_si has shape {states.shape}; expected (N, 5) rows "
+                         "(r m, vr m/s, θ rad, v_t m/s, m kg)")
+    if not np.all(np.isfinite(states)):
+        bad = np.argwhere(~np.all(np.isfinite(states), axis=1)).ravel()
+        raise ValueError(f"initial_states_si rows {bad[:10].tolist()} are not finite")
+    return states
+
+
+def nearest_neighbour_order(scenario: PlanarScenario, initial_states_si) -> np.ndarray:
+    """Order rows so that each is close to the previous one (greedy chain).
+
+    Distance: normalised (r, v, r·ω, m); θ is ignored because the solution does not depend on
+    it (θ is cyclic). The chain starts at the row nearest the scenario's nominal state.
+
+    Returns
+    -------
+    ndarray of int, shape (N,)
+    """
+    states = _check_states(initial_states_si)
+    nd = scenario.si_to_nd(states)
+    feat = np.stack([nd[:, dyn.R], nd[:, dyn.VR], nd[:, dyn.R] * nd[:, dyn.OMEGA],
+                     nd[:, dyn.M]], axis=1)
+    x_nom = scenario.state_nd()
+    nom = np.array([x_nom[dyn.R], x_nom[dyn.VR], x_nom[dyn.R] * x_nom[dyn.OMEGA], x_nom[dyn.M]])
+    n = len(feat)
+    order = np.empty(n, dtype=np.int64)
+    left = np.ones(n, dtype=bool)
+    cur = int(np.argmin(np.sum((feat - nom) ** 2, axis=1)))
+    for i in range(n):
+        order[i] = cur
+        left[cur] = False
+        if i == n - 1:
+            break
+        d = np.sum((feat - feat[cur]) ** 2, axis=1)
+        d[~left] = np.inf
+        cur = int(np.argmin(d))
+    return order
+
+
+_NOMINAL_GUESS: dict[tuple, PontryaginGuess] = {}
+
+
+def nominal_guess(scenario: PlanarScenario, n_steps: int = 400) -> PontryaginGuess:
+    """Warm start from the scenario's nominal optimum (solved once per process, cached).
+
+    Raises
+    ------
+    RuntimeError
+        If the nominal problem itself has no solution.
+    """
+    key = (scenario, int(n_steps))
+    if key not in _NOMINAL_GUESS:
+        sol = solve_planar_min_fuel(scenario, n_steps=n_steps, check="grid")
+        if not sol.success:
+            raise RuntimeError(f"{scenario.name}: the nominal Pontryagin problem did not solve: "
+                               f"{sol.message}")
+        _NOMINAL_GUESS[key] = sol.guess
+    return _NOMINAL_GUESS[key]
+
+
+def _solve_chain(scenario, states_si, start: PontryaginGuess | None, kwargs) -> list:
+    """Solve rows in the given order, each warm-started from the previous success."""
+    out = []
+    g = start
+    for row in states_si:
+        sol = solve_planar_min_fuel(scenario, row, guess=g, **kwargs)
+        out.append(sol)
+        if sol.success:
+            g = sol.guess
+    return out
+
+
+def solve_many(
+    scenario: PlanarScenario,
+    initial_states_si,
+    *,
+    n_workers: int = 1,
+    progress: bool = True,
+    chunk_size: int = 50,
+    n_steps: int = 400,
+    check: str = "grid",
+    **kwargs,
+) -> list[PontryaginSolution]:
+    """Solve the minimum-fuel landing from many initial states (e.g. a dispersion).
+
+    The rows are chained by :func:`nearest_neighbour_order`; each solve is warm-started from
+    the previous success in the chain (the first from the nominal optimum), with the
+    continuation and collocation fallbacks of :func:`solve_planar_min_fuel`.
+
+    Parameters
+    ----------
+    scenario : PlanarScenario
+    initial_states_si : array_like, shape (N, 5)
+        SI rows (r m, vr m/s, θ rad, v_t m/s, m kg), e.g. ``scenario.sample_initial(rng, N)``.
+    n_workers : int
+        1 solves in this process; more uses a process pool (spawned; each worker builds its
+        CasADi functions once, ~0.5 s) over contiguous chunks of the chain.
+    progress : bool
+        Show a tqdm progress bar.
+    chunk_size : int
+        Rows per pool task (each chunk restarts from the nominal guess).
+    n_steps, check, **kwargs
+        Passed to :func:`solve_planar_min_fuel` (default ``check="grid"``: the terminal errors
+        are the shooting residual; use ``"doubling"`` for an RK4 error estimate).
+
+    Returns
+    -------
+    list of PontryaginSolution, in the order of the input rows.
+
+    Raises
+    ------
+    ValueError
+        Bad shape, non-finite rows, ``n_workers < 1`` or ``chunk_size < 1``.
+    """
+    states = _check_states(initial_states_si)
+    n_workers = int(n_workers)
+    if n_workers < 1:
+        raise ValueError(f"n_workers = {n_workers} must be >= 1")
+    if int(chunk_size) < 1:
+        raise ValueError(f"chunk_size = {chunk_size!r} must be >= 1")
+    for i, row in enumerate(states):  # validate every row before any work
+        try:
+            initial_state_nd(scenario, row)
+        except ValueError as exc:
+            raise ValueError(f"initial_states_si row {i}: {exc}") from None
+    n = len(states)
+    if n == 0:
+        return []
+    order = nearest_neighbour_order(scenario, states)
+    kwargs = dict(kwargs, n_steps=n_steps, check=check)
+    start = nominal_guess(scenario, n_steps)
+    results: list[PontryaginSolution | None] = [None] * n
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=n, desc=f"Pontryagin {scenario.name}", unit="state")
+    try:
+        if n_workers == 1:
+            g = start
+            for idx in order:
+                sol = solve_planar_min_fuel(scenario, states[idx], guess=g, **kwargs)
+                results[idx] = sol
+                if sol.success:
+                    g = sol.guess
+                if bar is not None:
+                    bar.update(1)
+        else:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor, as_completed
+
+            chunks = [order[i:i + int(chunk_size)] for i in range(0, n, int(chunk_size))]
+            ctx = mp.get_context("spawn")
+            with ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx) as pool:
+                futs = {pool.submit(_solve_chain, scenario, states[c], start, kwargs): c
+                        for c in chunks}
+                for fut in as_completed(futs):
+                    c = futs[fut]
+                    for idx, sol in zip(c, fut.result(), strict=True):
+                        results[idx] = sol
+                    if bar is not None:
+                        bar.update(len(c))
+    finally:
+        if bar is not None:
+            bar.close()
+    return results  # type: ignore[return-value]
+
+
+# ---------------------------------------------------------------------------------------------
+# Public: closed-loop re-planning expert
+# ---------------------------------------------------------------------------------------------
+
+STATUS_OPTIMAL = "optimal"
+STATUS_HOLD = "hold"
+STATUS_FALLBACK = "fallback"
+
+
+class PontryaginExpert:
+    """Closed-loop re-planning expert: the optimal thrust angle *now*, from the current state.
+
+    Each call re-solves the minimum-fuel problem from the given state (warm-started from this
+    expert's previous solution for the same batch row, advanced to the current time) and returns
+    φ*(0) of the new solution. Usable as a DAgger expert or as a guidance law in an env loop.
+
+    Behaviour per row, reported in :attr:`last_status`:
+
+    * ``"optimal"``: the shooting converged; φ is the optimal angle from this state.
+    * ``"hold"``: less than ``hold_time_s`` of the previous plan is left. Shooting is
+      ill-conditioned as the time to go vanishes, so the previous plan's angle at the current
+      time is returned (open-loop over the last seconds).
+    * ``"fallback"``: no extremal from this state (e.g. too low or too fast to land, or not
+      enough propellant): best effort, full braking along the negative relative velocity,
+      φ = atan2(−v, v_t) (straight up, φ = π/2, when the lander is at rest).
+
+    Time since the previous call: ``t_s`` (mission time of the state) when given, otherwise
+    the mass clock Δt = Δm/ṁ (constant thrust). A mass *higher* than at the previous call, or
+    :meth:`reset`, starts a new episode (warm start from the nominal optimum again).
+
+    Parameters
+    ----------
+    scenario : PlanarScenario
+    n_steps, n_jac_steps : int
+        Grids of :func:`solve_planar_min_fuel` (coarser than the certification defaults: the
+        angle is what matters here).
+    tol : float
+        Shooting tolerance.
+    hold_time_s : float
+        See ``"hold"`` above.
+    """
+
+    def __init__(self, scenario: PlanarScenario, *, n_steps: int = 200, n_jac_steps: int = 40,
+                 tol: float = 1e-11, hold_time_s: float = 3.0) -> None:
+        if not isinstance(scenario, PlanarScenario):
+            raise TypeError(f"scenario must be a PlanarScenario, got {type(scenario).__name__}")
+        if not (math.isfinite(hold_time_s) and hold_time_s >= 0):
+            raise ValueError(f"hold_time_s = {hold_time_s!r} must be finite and >= 0")
+        self.scenario = scenario
+        self.n_steps = int(n_steps)
+        self.n_jac_steps = int(n_jac_steps)
+        self.tol = float(tol)
+        self.hold_time_s = float(hold_time_s)
+        self._flow_kg_s = scenario.vehicle.mass_flow_kg_s
+        self._memory: dict[int, tuple[PontryaginSolution, float | None, float]] = {}
+        self.last_status: list[str] = []
+        self.last_fuel_to_go_kg = np.empty(0)
+        self.last_solve_s = np.empty(0)
+
+    def reset(self) -> None:
+        """Forget previous solutions (start of a new episode)."""
+        self._memory.clear()
+
+    def __call__(self, state_si, t_s=None):
+        """Optimal thrust angle (rad) from SI state(s).
+
+        Parameters
+        ----------
+        state_si : array_like, shape (5,) or (B, 5)
+            (r m, vr m/s, θ rad, v_t m/s, m kg).
+        t_s : float or array_like of shape (B,), optional
+            Mission time of the state(s) (s); see the class docstring.
+
+        Returns
+        -------
+        float (for one state) or ndarray, shape (B,)
+
+        Raises
+        ------
+        ValueError
+            Wrong shape or non-finite state or time.
+        """
+        arr = np.asarray(state_si, dtype=np.float64)
+        single = arr.ndim == 1
+        rows = np.atleast_2d(arr)
+        if rows.ndim != 2 or rows.shape[1] != 5:
+            raise ValueError(f"state_si has shape {arr.shape}; expected (5,) or (B, 5) rows "
+                             "(r m, vr m/s, θ rad, v_t m/s, m kg)")
+        if not np.all(np.isfinite(rows)):
+            raise ValueError("state_si must be finite")
+        if t_s is None:
+            times = [None] * len(rows)
+        else:
+            tt = np.broadcast_to(np.asarray(t_s, dtype=np.float64), (len(rows),))
+            if not np.all(np.isfinite(tt)):
+                raise ValueError(f"t_s = {t_s!r} must be finite")
+            times = [float(v) for v in tt]
+        phi = np.empty(len(rows))
+        status = []
+        fuel = np.full(len(rows), np.nan)
+        wall = np.empty(len(rows))
+        for b, row in enumerate(rows):
+            t0 = time.perf_counter()
+            phi[b], st, fuel[b] = self._act(b, row, times[b])
+            wall[b] = time.perf_counter() - t0
+            status.append(st)
+        self.last_status = status
+        self.last_fuel_to_go_kg = fuel
+        self.last_solve_s = wall
+        return float(phi[0]) if single else phi
+
+    @staticmethod
+    def braking_angle(state_si: np.ndarray) -> float:
+        """φ that points the thrust against the relative velocity (π/2 at rest)."""
+        vr, vt = float(state_si[1]), float(state_si[3])
+        if math.hypot(vr, vt) < 1e-9:
+            return 0.5 * math.pi
+        return math.atan2(-vr, vt)
+
+    def _act(self, b: int, row: np.ndarray, t: float | None) -> tuple[float, str, float]:
+        sc = self.scenario
+        if row[0] <= 0.0 or row[4] <= sc.vehicle.dry_mass_kg:
+            return self.braking_angle(row), STATUS_FALLBACK, math.nan
+        prev = self._memory.get(b)
+        guess: PontryaginGuess | None = None
+        if prev is not None:
+            sol_prev, t_prev, m_prev = prev
+            if row[4] > m_prev + 1e-9:  # mass went up: a new episode
+                self._memory.pop(b)
+            else:
+                if t is not None and t_prev is not None:
+                    elapsed = t - t_prev
+                else:
+                    elapsed = (m_prev - row[4]) / self._flow_kg_s
+                elapsed = min(max(elapsed, 0.0), sol_prev.tf_s)
+                remaining = sol_prev.tf_s - elapsed
+                if remaining <= self.hold_time_s:
+                    return (sol_prev.thrust_angle_at(elapsed), STATUS_HOLD,
+                            remaining * self._flow_kg_s)
+                z = sol_prev.state_costate_at(elapsed)[0]
+                guess = PontryaginGuess(z[_LAM:], float(sc.scaling().time_nd(remaining)),
+                                        z[:_LAM])
+        if guess is None:
+            guess = nominal_guess(sc, self.n_steps)
+        sol = solve_planar_min_fuel(sc, row, guess=guess, n_steps=self.n_steps,
+                                    n_jac_steps=self.n_jac_steps, tol=self.tol, check="grid")
+        if not sol.success:
+            return self.braking_angle(row), STATUS_FALLBACK, math.nan
+        self._memory[b] = (sol, t, float(row[4]))
+        return float(optimal_thrust_angle(sol.x0_nd, sol.costates0)), STATUS_OPTIMAL, sol.fuel_kg
