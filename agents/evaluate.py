@@ -1,0 +1,688 @@
+"""Compare policies with the optimiser baselines over one seeded set of dispersed initial states.
+
+::
+
+    python -m agents.evaluate --model runs/ppo/LunarSoftLanding-v0_1          # + baselines
+    python -m agents.evaluate --model a/model.zip --model b/ --n-states 200 --out results/cmp
+    python -m agents.evaluate --no-open-loop --expert-states 0 --model runs/ppo/...
+
+Every policy flies the **same** initial states: the native vector env is reset with one seed,
+and sub-env ``i`` draws its initial state with seed ``seed + i`` (the Gymnasium vector-env
+convention the env follows), so case ``i`` is the same for every policy and for any batch size
+that contains it. For each case the per-case optimum (minimum fuel, Pontryagin indirect shooting,
+:func:`optimizers.pontryagin.solve_many`) is computed from the very initial state the env drew.
+
+Policies
+--------
+- ``SB3Policy``: a trained Stable-Baselines3 model with its ``VecNormalize`` statistics,
+  deterministic actions, all landers in one batched forward pass.
+- ``OpenLoopPolicy``: replay of the per-case optimal control history φ(t) (sampled at the
+  middle of each env step, held over the step as the env holds every action).
+- ``ExpertPolicy``: the closed-loop re-planning expert (:class:`optimizers.pontryagin.
+  PontryaginExpert`), which re-solves from the current state. It costs a solve per decision, so
+  by default it flies only the first ``--expert-states`` cases (its fuel gap is measured on
+  those cases' optima).
+
+Metrics (one row per policy)
+----------------------------
+- ``success_rate``: touchdown with the env's success criterion (``info["is_success"]``);
+- ``touchdown_speed_m_s`` mean and 95th percentile over cases that touched down;
+- ``miss_distance_m`` mean (pinpoint env only);
+- ``fuel_kg`` mean over all cases; ``fuel_gap_pct``: mean over *successful* cases of
+  100·(fuel − optimal fuel)/optimal fuel (decision: a crash can use less fuel than the optimum,
+  so averaging over failures would reward them; the all-case gap is in the JSON too);
+- ``us_per_decision``: wall time of the policy's action computation divided by the number of
+  decisions of landers still flying (batched policies amortise one forward pass over the
+  batch; the expert's time is one re-plan per decision).
+
+Outputs: a Markdown table (printed and ``comparison.md``), ``comparison.json`` and
+``trajectories.png`` (trajectory and thrust angle of each policy beside the optimum for a few
+cases) in the output directory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+__all__ = ["Policy", "SB3Policy", "OpenLoopPolicy", "ExpertPolicy", "PolicyResult",
+           "initial_states", "rollout", "optimal_solutions", "compare", "markdown_table",
+           "plot_comparison", "evaluate_run", "main"]
+
+DEFAULT_ENV_ID = "LunarSoftLanding-v0"
+DEFAULT_N_STATES = 1000
+DEFAULT_SEED = 2026
+DEFAULT_EXPERT_STATES = 20
+
+
+# ----------------------------------------------------------------------------- env helpers
+
+
+def _make_vec(env_id: str, n: int, env_kwargs: dict[str, Any] | None):
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401  (registers the env ids)
+
+    return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
+                        **(env_kwargs or {}))
+
+
+def _core(venv):
+    return getattr(venv, "unwrapped", venv)
+
+
+def _is_planar(venv) -> bool:
+    return np.asarray(_core(venv).state_nd).shape[1] == 5
+
+
+def planar_state_si(scenario, state_nd: np.ndarray) -> np.ndarray:
+    """Normalised planar states (r, vr, θ, ω, m) -> SI rows (r m, vr m/s, θ rad, v_t m/s, m kg).
+
+    Inverse of ``scenario.si_to_nd`` (v_t = r·ω).
+    """
+    s = scenario.scaling()
+    y = np.asarray(state_nd, dtype=np.float64)
+    out = np.empty_like(y)
+    out[:, 0] = y[:, 0] * s.length_m
+    out[:, 1] = y[:, 1] * s.velocity_m_s
+    out[:, 2] = y[:, 2]
+    out[:, 3] = y[:, 0] * y[:, 3] * s.velocity_m_s
+    out[:, 4] = y[:, 4] * s.mass_kg
+    return out
+
+
+def initial_states(env_id: str, n: int, seed: int, env_kwargs: dict[str, Any] | None = None
+                   ) -> np.ndarray:
+    """The normalised initial states (n, nx) of cases ``0..n-1`` for ``seed``."""
+    venv = _make_vec(env_id, n, env_kwargs)
+    try:
+        venv.reset(seed=seed)
+        return np.array(_core(venv).state_nd, dtype=np.float64, copy=True)
+    finally:
+        venv.close()
+
+
+# ----------------------------------------------------------------------------- policies
+
+
+class Policy(Protocol):
+    """A batched policy: ``reset`` at episode start, then ``act`` once per env step."""
+
+    name: str
+
+    def reset(self, venv, case_ids: np.ndarray) -> None: ...
+
+    def act(self, obs: np.ndarray, venv) -> np.ndarray: ...
+
+
+class SB3Policy:
+    """A trained SB3 model with its ``VecNormalize`` observation statistics.
+
+    Parameters
+    ----------
+    model : BaseAlgorithm
+    vecnormalize : VecNormalize or str or Path or None
+        Statistics (or the ``.pkl`` written by ``VecNormalize.save``); ``None`` if the model was
+        trained without normalisation.
+    name : str
+    """
+
+    def __init__(self, model, vecnormalize=None, name: str = "PPO") -> None:
+        import pickle
+
+        self.model = model
+        self.name = name
+        if isinstance(vecnormalize, str | Path):
+            with open(vecnormalize, "rb") as fh:
+                vecnormalize = pickle.load(fh)
+        self.vecnormalize = vecnormalize
+
+    @classmethod
+    def from_path(cls, path: str | Path, name: str | None = None) -> SB3Policy:
+        """Load from a run directory or model ``.zip`` (see :func:`agents.train.load_trained`)."""
+        from agents.train import load_trained
+
+        model, vn_path, algo = load_trained(path)
+        return cls(model, vn_path, name=name or algo.upper())
+
+    def reset(self, venv, case_ids: np.ndarray) -> None:
+        pass
+
+    def act(self, obs: np.ndarray, venv) -> np.ndarray:
+        if self.vecnormalize is not None:
+            obs = self.vecnormalize.normalize_obs(obs)
+        action, _ = self.model.predict(obs, deterministic=True)
+        return action
+
+
+def _thrust_angle_to_action(venv, phi_rad: np.ndarray) -> np.ndarray:
+    from lunar_env.envs.soft_landing import action_from_thrust_angle
+
+    return np.asarray(action_from_thrust_angle(phi_rad), dtype=np.float32).reshape(-1, 1)
+
+
+class OpenLoopPolicy:
+    """Replay of per-case optimal control histories φ(t) (planar env).
+
+    The env holds each action for ``dt_s``; the replay samples φ at the middle of the step
+    (a second-order accurate hold of a smooth control). After the optimal final time the last
+    value is held.
+
+    Parameters
+    ----------
+    solutions : sequence of PontryaginSolution
+        One per case (indexed by case id), with ``thrust_angle_at(t_s)`` (times clipped to
+        [0, tf]: the last optimal angle is held after tf). Cases whose solve failed fly φ = 0
+        (a braking burn) and are reported like any other case.
+    """
+
+    name = "Pontryagin open loop"
+
+    def __init__(self, solutions) -> None:
+        self.solutions = list(solutions)
+        self._ids = np.zeros(0, dtype=int)
+
+    def reset(self, venv, case_ids: np.ndarray) -> None:
+        self._ids = np.asarray(case_ids)
+
+    def act(self, obs: np.ndarray, venv) -> np.ndarray:
+        core = _core(venv)
+        t_mid = np.asarray(core.t_s, dtype=np.float64) + 0.5 * float(_dt_s(core))
+        phi = np.zeros(len(self._ids))
+        for k, cid in enumerate(self._ids):
+            sol = self.solutions[cid]
+            if sol.success:
+                phi[k] = sol.thrust_angle_at(float(t_mid[k]))
+        return _thrust_angle_to_action(venv, phi)
+
+
+def _dt_s(core) -> float:
+    for attr in ("dt_s",):
+        if hasattr(core, attr):
+            return float(getattr(core, attr))
+    task = getattr(core, "task", None) or getattr(core, "_task", None)
+    if task is not None and hasattr(task, "dt_s"):
+        return float(task.dt_s)
+    raise AttributeError("cannot find the env step length dt_s on the vector env")
+
+
+class ExpertPolicy:
+    """Closed-loop re-planning expert: re-solves the optimal control from every current state.
+
+    Wraps :class:`optimizers.pontryagin.PontryaginExpert` (planar env), called once per flying
+    lander and decision with the lander's SI state and time since the start of its episode.
+    """
+
+    name = "Pontryagin re-planning"
+
+    def __init__(self, scenario, **expert_kwargs) -> None:
+        self.scenario = scenario
+        self.expert_kwargs = expert_kwargs
+        self.expert = None
+        self.active: np.ndarray | None = None
+
+    def reset(self, venv, case_ids: np.ndarray) -> None:
+        from optimizers.pontryagin import PontryaginExpert
+
+        self.expert = PontryaginExpert(self.scenario, **self.expert_kwargs)
+        self.active = None
+
+    def act(self, obs: np.ndarray, venv) -> np.ndarray:
+        core = _core(venv)
+        si = planar_state_si(self.scenario, np.asarray(core.state_nd))
+        t_s = np.asarray(core.t_s, dtype=np.float64)
+        phi = np.zeros(len(si))
+        for k in range(len(si)):
+            if self.active is None or self.active[k]:
+                phi[k] = float(self.expert(si[k], t_s=float(t_s[k])))
+        return _thrust_angle_to_action(venv, phi)
+
+
+# ----------------------------------------------------------------------------- rollout
+
+
+@dataclass
+class PolicyResult:
+    """Per-case outcome of one policy (arrays of length n_cases)."""
+
+    name: str
+    case_ids: np.ndarray
+    is_success: np.ndarray
+    touchdown_speed_m_s: np.ndarray
+    miss_distance_m: np.ndarray
+    fuel_used_kg: np.ndarray
+    episode_time_s: np.ndarray
+    n_decisions: int
+    policy_wall_s: float
+    traces: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
+
+    @property
+    def us_per_decision(self) -> float:
+        return 1e6 * self.policy_wall_s / max(self.n_decisions, 1)
+
+
+def rollout(env_id: str, policy: Policy, n: int, seed: int,
+            env_kwargs: dict[str, Any] | None = None, trace_cases: int = 3,
+            max_steps: int | None = None) -> PolicyResult:
+    """Fly ``policy`` from cases ``0..n-1`` (one batched vector env) until every case ended.
+
+    Parameters
+    ----------
+    env_id : str
+    policy : Policy
+    n : int
+        Number of cases.
+    seed : int
+        Seed of the case set (case i = sub-env seeded ``seed + i``).
+    env_kwargs : dict, optional
+        Passed to the env (must match those used in training).
+    trace_cases : int
+        Record state and action histories of the first ``trace_cases`` cases for plots.
+    max_steps : int, optional
+        Safety bound on the number of vector steps (default: the env's time limit / dt + 10).
+
+    Returns
+    -------
+    PolicyResult
+    """
+    if n < 1:
+        raise ValueError(f"n={n} must be >= 1")
+    venv = _make_vec(env_id, n, env_kwargs)
+    try:
+        obs, _ = venv.reset(seed=seed)
+        core = _core(venv)
+        ids = np.arange(n)
+        policy.reset(venv, ids)
+        if max_steps is None:
+            tl = getattr(core, "time_limit_s", None)
+            task = getattr(core, "task", None) or getattr(core, "_task", None)
+            if tl is None and task is not None:
+                tl = task.time_limit_s
+            max_steps = int(math.ceil(float(tl) / _dt_s(core))) + 10 if tl else 100_000
+        active = np.ones(n, dtype=bool)
+        success = np.zeros(n, dtype=bool)
+        speed = np.full(n, np.nan)
+        miss = np.full(n, np.nan)
+        fuel = np.full(n, np.nan)
+        t_end = np.full(n, np.nan)
+        k_tr = min(trace_cases, n)
+        traces: dict[int, dict[str, list]] = {i: {"t_s": [], "state_nd": [], "action": []}
+                                              for i in range(k_tr)}
+        wall = 0.0
+        n_dec = 0
+        for _ in range(max_steps):
+            state_before = np.array(core.state_nd[:k_tr], copy=True)
+            t_before = np.array(core.t_s[:k_tr], dtype=np.float64, copy=True)
+            if hasattr(policy, "active"):
+                policy.active = active  # lets a costly policy skip finished landers
+            t0 = time.perf_counter()
+            action = policy.act(obs, venv)
+            wall += time.perf_counter() - t0
+            n_dec += int(active.sum())
+            action = np.asarray(action, dtype=np.float32)
+            if not np.all(np.isfinite(action)):
+                raise FloatingPointError(f"policy {policy.name!r} produced non-finite actions")
+            for i in range(k_tr):
+                if active[i]:
+                    traces[i]["t_s"].append(t_before[i])
+                    traces[i]["state_nd"].append(state_before[i])
+                    traces[i]["action"].append(action[i])
+            obs, _, term, trunc, info = venv.step(action)
+            ended = (np.asarray(term) | np.asarray(trunc)) & active
+            if ended.any():
+                e = np.flatnonzero(ended)
+                success[e] = np.asarray(info["is_success"])[e]
+                speed[e] = np.asarray(info["touchdown_speed_m_s"], dtype=np.float64)[e]
+                if "miss_distance_m" in info:
+                    miss[e] = np.asarray(info["miss_distance_m"], dtype=np.float64)[e]
+                fuel[e] = np.asarray(info["fuel_used_kg"], dtype=np.float64)[e]
+                if "time_s" in info:
+                    t_end[e] = np.asarray(info["time_s"], dtype=np.float64)[e]
+                for i in e[e < k_tr]:  # final state of traced cases (before autoreset)
+                    traces[i]["t_s"].append(float(info["time_s"][i]) if "time_s" in info
+                                            else np.nan)
+                    traces[i]["state_nd"].append(np.array(core.state_nd[i], copy=True))
+                active &= ~ended
+            if not active.any():
+                break
+        else:
+            raise RuntimeError(f"{policy.name}: {int(active.sum())} cases did not end within "
+                               f"{max_steps} steps")
+    finally:
+        venv.close()
+    tr_out = {i: {"t_s": np.asarray(v["t_s"], dtype=np.float64),
+                  "state_nd": np.asarray(v["state_nd"], dtype=np.float64),
+                  "action": np.asarray(v["action"], dtype=np.float64)}
+              for i, v in traces.items()}
+    return PolicyResult(policy.name, ids, success, speed, miss, fuel, t_end, n_dec, wall, tr_out)
+
+
+# ----------------------------------------------------------------------------- optimum
+
+
+def optimal_solutions(scenario, states_nd: np.ndarray, progress: bool = True):
+    """Per-case minimum-fuel solutions (Pontryagin) from normalised planar initial states.
+
+    Returns
+    -------
+    fuel_kg : ndarray (n,)
+        Optimal fuel per case (NaN where the solver did not converge).
+    solutions : list of PontryaginSolution
+    wall_s : float
+    """
+    from optimizers.pontryagin import solve_many
+
+    states_si = planar_state_si(scenario, states_nd)
+    t0 = time.perf_counter()
+    sols = solve_many(scenario, states_si, progress=progress)
+    wall = time.perf_counter() - t0
+    fuel = np.array([s.fuel_kg if s.success else np.nan for s in sols], dtype=np.float64)
+    return fuel, list(sols), wall
+
+
+# ----------------------------------------------------------------------------- comparison
+
+
+def _summary(res: PolicyResult, opt_fuel: np.ndarray | None) -> dict[str, Any]:
+    td = np.isfinite(res.touchdown_speed_m_s)
+    row: dict[str, Any] = {
+        "policy": res.name,
+        "n_cases": int(len(res.case_ids)),
+        "success_rate": float(np.mean(res.is_success)),
+        "touchdown_rate": float(np.mean(td)),
+        "touchdown_speed_mean_m_s": float(np.mean(res.touchdown_speed_m_s[td])) if td.any()
+        else float("nan"),
+        "touchdown_speed_p95_m_s": float(np.percentile(res.touchdown_speed_m_s[td], 95))
+        if td.any() else float("nan"),
+        "miss_distance_mean_m": float(np.nanmean(res.miss_distance_m))
+        if np.isfinite(res.miss_distance_m).any() else float("nan"),
+        "fuel_mean_kg": float(np.nanmean(res.fuel_used_kg)),
+        "us_per_decision": float(res.us_per_decision),
+        "n_decisions": int(res.n_decisions),
+        "policy_wall_s": float(res.policy_wall_s),
+    }
+    gap_s = gap_all = float("nan")
+    n_gap = 0
+    if opt_fuel is not None:
+        opt = opt_fuel[res.case_ids]
+        ok = np.isfinite(opt) & np.isfinite(res.fuel_used_kg)
+        gap = 100.0 * (res.fuel_used_kg - opt) / opt
+        if ok.any():
+            gap_all = float(np.mean(gap[ok]))
+        oks = ok & res.is_success
+        n_gap = int(oks.sum())
+        if oks.any():
+            gap_s = float(np.mean(gap[oks]))
+        row["optimal_fuel_mean_kg"] = float(np.nanmean(opt))
+    row["fuel_gap_pct"] = gap_s
+    row["fuel_gap_pct_all_cases"] = gap_all
+    row["n_cases_in_gap"] = n_gap
+    return row
+
+
+def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATES,
+            seed: int = DEFAULT_SEED, env_kwargs: dict[str, Any] | None = None,
+            open_loop: bool = True, n_expert_states: int = DEFAULT_EXPERT_STATES,
+            trace_cases: int = 3, progress: bool = True) -> dict[str, Any]:
+    """Run ``policies`` and the optimiser baselines over one case set; return the report dict.
+
+    Keys: ``env_id``, ``seed``, ``n_states``, ``rows`` (one summary per policy, see the module
+    docstring), ``optimum`` (per-case optimal fuel summary and solver wall time), ``results``
+    (the :class:`PolicyResult` objects, not JSON-serialised), ``optimal_solutions``.
+    """
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+
+    states = initial_states(env_id, n_states, seed, env_kwargs)
+    env = gym.make(env_id, **(env_kwargs or {}))
+    scenario = env.unwrapped.scenario
+    env.close()
+    planar = states.shape[1] == 5
+    opt_fuel = None
+    sols = None
+    opt_info: dict[str, Any] = {}
+    if planar:
+        if progress:
+            print(f"Solving {n_states} per-case optimal controls (Pontryagin)...", flush=True)
+        opt_fuel, sols, wall = optimal_solutions(scenario, states, progress=progress)
+        opt_info = {"solver": "optimizers.pontryagin.solve_many",
+                    "converged": int(np.isfinite(opt_fuel).sum()),
+                    "fuel_mean_kg": float(np.nanmean(opt_fuel)), "wall_s": wall}
+    else:
+        opt_info = {"solver": None, "note": "no per-case optimum for the 3D env: the "
+                                            "Pontryagin solver is planar"}
+    runs: list[PolicyResult] = []
+    all_policies: list[tuple[Policy, int]] = [(p, n_states) for p in policies]
+    if planar and open_loop and sols is not None:
+        all_policies.append((OpenLoopPolicy(sols), n_states))
+    if planar and n_expert_states and n_expert_states > 0:
+        all_policies.append((ExpertPolicy(scenario), min(n_expert_states, n_states)))
+    for pol, n in all_policies:
+        if progress:
+            print(f"Evaluating {pol.name} on {n} cases...", flush=True)
+        runs.append(rollout(env_id, pol, n, seed, env_kwargs, trace_cases=trace_cases))
+    rows = [_summary(r, opt_fuel) for r in runs]
+    return {"env_id": env_id, "seed": seed, "n_states": n_states,
+            "env_kwargs": dict(env_kwargs or {}), "rows": rows, "optimum": opt_info,
+            "results": runs, "optimal_solutions": sols, "initial_states_nd": states,
+            "scenario": scenario}
+
+
+def _fmt(x: float, spec: str) -> str:
+    return "–" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
+
+
+def markdown_table(report: dict[str, Any]) -> str:
+    """The comparison as a Markdown table (one row per policy)."""
+    pinpoint = any(math.isfinite(r["miss_distance_mean_m"]) for r in report["rows"])
+    head = ["policy", "cases", "success %", "touchdown speed mean / p95 (m/s)"]
+    if pinpoint:
+        head.append("miss mean (m)")
+    head += ["fuel mean (kg)", "gap to optimum (%)", "µs / decision"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in report["rows"]:
+        cells = [r["policy"], str(r["n_cases"]), _fmt(100 * r["success_rate"], ".1f"),
+                 f"{_fmt(r['touchdown_speed_mean_m_s'], '.2f')} / "
+                 f"{_fmt(r['touchdown_speed_p95_m_s'], '.2f')}"]
+        if pinpoint:
+            cells.append(_fmt(r["miss_distance_mean_m"], ".0f"))
+        cells += [_fmt(r["fuel_mean_kg"], ".2f"), _fmt(r.get("fuel_gap_pct"), "+.2f"),
+                  _fmt(r["us_per_decision"], ".1f")]
+        lines.append("| " + " | ".join(cells) + " |")
+    opt = report.get("optimum", {})
+    if opt.get("solver"):
+        lines.append("")
+        lines.append(f"Per-case optimum ({opt['solver']}): {opt['converged']}/"
+                     f"{report['n_states']} converged, mean {opt['fuel_mean_kg']:.2f} kg, "
+                     f"{opt['wall_s']:.1f} s. Gap: mean over successful cases of "
+                     "100·(fuel − optimum)/optimum.")
+    return "\n".join(lines)
+
+
+def _json_report(report: dict[str, Any]) -> dict[str, Any]:
+    out = {k: report[k] for k in ("env_id", "seed", "n_states", "env_kwargs", "rows", "optimum")}
+    out["per_case"] = {
+        r.name: {"success": r.is_success.astype(int).tolist(),
+                 "touchdown_speed_m_s": [None if not math.isfinite(v) else v
+                                         for v in r.touchdown_speed_m_s.tolist()],
+                 "fuel_used_kg": [None if not math.isfinite(v) else v
+                                  for v in r.fuel_used_kg.tolist()]}
+        for r in report["results"]}
+    sols = report.get("optimal_solutions")
+    if sols is not None:
+        out["per_case"]["optimum_fuel_kg"] = [float(s.fuel_kg) if s.success else None
+                                              for s in sols]
+    return out
+
+
+def plot_comparison(report: dict[str, Any], path: str | Path) -> Path:
+    """Trajectory (altitude vs downrange) and thrust angle vs time of each policy and the optimum
+    for the traced cases; saved as a PNG at ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenario = report["scenario"]
+    results: list[PolicyResult] = report["results"]
+    cases = sorted(set().union(*[set(r.traces) for r in results])) if results else []
+    if not cases:
+        raise ValueError("no traced cases to plot")
+    planar = report["initial_states_nd"].shape[1] == 5
+    fig, axes = plt.subplots(len(cases), 2, figsize=(12, 3.6 * len(cases)), squeeze=False)
+    s = scenario.scaling()
+    r_surf = scenario.surface_radius_m if planar else scenario.body.radius_m
+    for row, cid in enumerate(cases):
+        ax_tr, ax_u = axes[row]
+        sols = report.get("optimal_solutions")
+        if planar and sols is not None and sols[cid].success:
+            tr = sols[cid].trajectory(n=301)
+            st = tr.states
+            ax_tr.plot(st["theta_rad"] * r_surf / 1e3, (st["radius_m"] - r_surf) / 1e3,
+                       "k--", lw=2, label="optimum")
+            ax_u.plot(tr.t_s, np.degrees(tr.controls["phi_rad"]), "k--", lw=2, label="optimum")
+        for res in results:
+            if cid not in res.traces:
+                continue
+            tc = res.traces[cid]
+            y = tc["state_nd"]
+            if len(y) == 0:
+                continue
+            if planar:
+                alt_km = (y[:, 0] * s.length_m - r_surf) / 1e3
+                down_km = y[:, 2] * r_surf / 1e3
+                ax_tr.plot(down_km, alt_km, label=res.name)
+                if len(tc["action"]):
+                    from lunar_env.envs.soft_landing import thrust_angle_from_action
+
+                    phi = thrust_angle_from_action(tc["action"][:, 0])
+                    ax_u.step(tc["t_s"][:len(phi)], np.degrees(phi), where="post",
+                              label=res.name)
+            else:
+                rad = np.linalg.norm(y[:, :3], axis=1) * s.length_m
+                ax_tr.plot(tc["t_s"], (rad - r_surf) / 1e3, label=res.name)
+                if len(tc["action"]):
+                    for j in range(tc["action"].shape[1]):
+                        ax_u.step(tc["t_s"][:len(tc["action"])], tc["action"][:, j],
+                                  where="post", label=f"{res.name} a{j}")
+        ax_tr.set_xlabel("downrange (km)" if planar else "time (s)")
+        ax_tr.set_ylabel("altitude (km)")
+        ax_tr.set_title(f"case {cid}: trajectory")
+        ax_u.set_xlabel("time (s)")
+        ax_u.set_ylabel("thrust angle φ (deg)" if planar else "action")
+        ax_u.set_title(f"case {cid}: control")
+        ax_tr.grid(alpha=0.3)
+        ax_u.grid(alpha=0.3)
+        ax_u.legend(fontsize=8)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_report(report: dict[str, Any], out_dir: str | Path) -> dict[str, Path]:
+    """Write ``comparison.md``, ``comparison.json`` and ``trajectories.png`` into ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    md = markdown_table(report)
+    (out / "comparison.md").write_text(md + "\n")
+    (out / "comparison.json").write_text(json.dumps(_json_report(report), indent=1))
+    paths = {"markdown": out / "comparison.md", "json": out / "comparison.json"}
+    try:
+        paths["plot"] = plot_comparison(report, out / "trajectories.png")
+    except ValueError:
+        pass
+    return paths
+
+
+def evaluate_run(run_dir: str | Path, n_states: int = DEFAULT_N_STATES, seed: int = DEFAULT_SEED,
+                 n_expert_states: int | None = None, open_loop: bool = True,
+                 out_dir: str | Path | None = None) -> dict[str, Any]:
+    """Evaluate a training run (its final model) against the baselines; print and save the table.
+
+    Uses the run's env id and ``env_kwargs`` (from ``args.yml`` / ``config.yml``); writes into
+    ``<run_dir>/evaluation`` unless ``out_dir`` is given.
+    """
+    import yaml
+
+    run_dir = Path(run_dir)
+    args = yaml.safe_load((run_dir / "args.yml").read_text())
+    hp = yaml.safe_load((run_dir / "config.yml").read_text())
+    env_id = args["env"]
+    policy = SB3Policy.from_path(run_dir, name=f"{args['algo'].upper()} ({run_dir.name})")
+    report = compare(env_id, [policy], n_states=n_states, seed=seed,
+                     env_kwargs=hp.get("env_kwargs"), open_loop=open_loop,
+                     n_expert_states=DEFAULT_EXPERT_STATES if n_expert_states is None
+                     else int(n_expert_states))
+    paths = write_report(report, out_dir or run_dir / "evaluation")
+    print()
+    print(f"## {env_id}: {n_states} dispersed initial states (seed {seed})")
+    print()
+    print(markdown_table(report))
+    print()
+    print("Written: " + ", ".join(str(p) for p in paths.values()))
+    return report
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command-line entry point (``python -m agents.evaluate``)."""
+    p = argparse.ArgumentParser(prog="python -m agents.evaluate", description=__doc__.split(
+        "\n")[0])
+    p.add_argument("--env", default=None,
+                   help=f"env id (default: the first model's run, else {DEFAULT_ENV_ID})")
+    p.add_argument("--model", action="append", default=[],
+                   help="run directory or model .zip (repeatable)")
+    p.add_argument("--n-states", type=int, default=DEFAULT_N_STATES)
+    p.add_argument("--seed", type=int, default=DEFAULT_SEED)
+    p.add_argument("--expert-states", type=int, default=DEFAULT_EXPERT_STATES,
+                   help="cases flown by the closed-loop re-planning expert (0: skip)")
+    p.add_argument("--no-open-loop", action="store_true", help="skip the open-loop replay")
+    p.add_argument("--trace-cases", type=int, default=3)
+    p.add_argument("--out", default=None, help="output directory (default results/evaluate)")
+    p.add_argument("--json", default=None, help="also write the JSON report to this file")
+    args = p.parse_args(argv)
+    import yaml
+
+    env_id = args.env
+    env_kwargs = None
+    policies: list[Policy] = []
+    for m in args.model:
+        mp = Path(m)
+        run_dir = mp if mp.is_dir() else (mp.parent.parent if mp.parent.name == "checkpoints"
+                                          else mp.parent)
+        if (run_dir / "args.yml").exists():
+            ra = yaml.safe_load((run_dir / "args.yml").read_text())
+            hp = yaml.safe_load((run_dir / "config.yml").read_text())
+            if env_id is None:
+                env_id = ra["env"]
+            if env_kwargs is None:
+                env_kwargs = hp.get("env_kwargs")
+        policies.append(SB3Policy.from_path(mp, name=None if len(args.model) == 1 else None))
+        if len(args.model) > 1:
+            policies[-1].name = f"{policies[-1].name} ({run_dir.name})"
+    env_id = env_id or DEFAULT_ENV_ID
+    report = compare(env_id, policies, n_states=args.n_states, seed=args.seed,
+                     env_kwargs=env_kwargs, open_loop=not args.no_open_loop,
+                     n_expert_states=args.expert_states, trace_cases=args.trace_cases)
+    paths = write_report(report, args.out or Path("results") / "evaluate")
+    if args.json:
+        Path(args.json).write_text(json.dumps(_json_report(report), indent=1))
+    print()
+    print(markdown_table(report))
+    print()
+    print("Written: " + ", ".join(str(p) for p in paths.values()))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
