@@ -83,6 +83,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba.extending import register_jitable
 
 __all__ = [
     "R", "VR", "THETA", "OMEGA", "M", "PHI", "THROTTLE", "PLANAR_STATE_NAMES",
@@ -170,6 +171,8 @@ def planar_eom(r, vr, omega, m, phi, throttle, thrust, exhaust_velocity):
     return dr, dvr, dtheta, domega, dm
 
 
+# register_jitable: a plain Python function that compiled kernels may also call.
+@register_jitable(inline="always")
 def orbital_frame(x, y, z, nx, ny, nz):
     """Unit vectors (x̂, ŷ, ẑ) of the orbital frame at Moon-fixed position (x, y, z).
 

@@ -1,4 +1,4 @@
-"""Input checks shared by the public edges: each error names the field, value and what is allowed."""
+"""Input checks for the public edges: each error names the field, the value and what is allowed."""
 
 from __future__ import annotations
 

@@ -36,7 +36,8 @@ class Trajectory:
             return self.t_s, self.states[name]
         if name in self.controls:
             return self.t_s, self.controls[name]
-        raise KeyError(f"{name!r} is not recorded; have {sorted(self.states) + sorted(self.controls)}")
+        known = sorted(self.states) + sorted(self.controls)
+        raise KeyError(f"{name!r} is not recorded; have {known}")
 
 
 @dataclass
