@@ -154,7 +154,8 @@ class ASAGA:
                  r1_start: float = 0.5, r1_slope: float = 0.25, r2: float = 0.5,
                  pm1: float = 0.01, pm2: float = 0.005, k1_start: float = 0.5,
                  k1_slope: float = 0.4, k2: float = 0.5, delta_start: float = 0.5,
-                 penalty_weights=None, fitness_units: str = "normalised", verbose: int = 0,
+                 penalty_weights=None, fitness_units: str = "normalised",
+                 anneal_result: str = "current", verbose: int = 0,
                  progress_bar: bool = False) -> None:
         ints = dict(n_pop=n_pop, n_generations=n_generations, n_accept_min=n_accept_min,
                     n_inner_max=n_inner_max, n_anneal=n_anneal, n_recross_max=n_recross_max)
@@ -189,6 +190,9 @@ class ASAGA:
         if fitness_units not in ("normalised", "si"):
             raise ValueError(f"fitness_units = {fitness_units!r}; use 'normalised' or 'si'")
         self.fitness_units = fitness_units
+        if anneal_result not in ("current", "best"):
+            raise ValueError(f"anneal_result = {anneal_result!r}; use 'current' or 'best'")
+        self.anneal_result = anneal_result
         self.verbose = int(verbose)
         self.progress_bar = bool(progress_bar)
 
@@ -270,6 +274,7 @@ class ASAGA:
             todo = todo[~ok]
             if todo.size == 0:
                 break
+        self._n_clipped = int(todo.size)
         return np.clip(A2, lb, ub), np.clip(B2, lb, ub)
 
     def mutate(self, C: np.ndarray, pm: np.ndarray, k: np.ndarray, lb: np.ndarray,
@@ -332,7 +337,9 @@ class ASAGA:
             ``x``, ``fuel_kg`` and ``tf_s`` (when the problem knows them), SI
             ``terminal_errors``, ``history`` (best penalised fitness per generation), and in
             ``extra``: ``history_fuel_kg``, ``history_speed_m_s``, ``history_radius_m``,
-            ``history_mean_fitness``, ``n_generations``, ``fitness`` (final penalised),
+            ``history_mean_fitness``, ``history_anneal_acceptance`` (fraction of annealing moves
+            accepted), ``history_clipped_pairs`` (fraction of crossed pairs clipped after
+            ``n_recross_max`` re-crossings), ``n_generations``, ``fitness`` (final penalised),
             ``F`` (raw fitness row).
         """
         t_start = time.perf_counter()
@@ -358,7 +365,7 @@ class ASAGA:
                 X = np.clip(X, lb, ub)
             F = problem.batch_fitness(X)
             hist = {k: [] for k in ("fitness", "fuel_kg", "speed_m_s", "radius_m",
-                                    "mean_fitness")}
+                                    "mean_fitness", "anneal_acceptance", "clipped_pairs")}
             state = ASAGAState(0, X, F, rng.bit_generator.state, hist, 0, 0.0)
         n_fevals_prev = state.n_fevals
         wall_prev = state.wall_s
@@ -458,6 +465,7 @@ class ASAGA:
         pc, r = self.adaptive_rates(np.maximum(fa, fb), f_max, f_avg, T, "crossover")
         cross = rng.random(ia.size) < pc
         A2, B2 = A.copy(), B.copy()
+        self._n_clipped = 0
         if np.any(cross):
             a, b = self.crossover(A[cross], B[cross], r[cross], lb, ub, rng)
             A2[cross], B2[cross] = a, b
@@ -466,6 +474,7 @@ class ASAGA:
         # mutation, eq. (14), (17), (18), per parameter
         pm, k = self.adaptive_rates(f_parent, f_max, f_avg, T, "mutation")
         children = self.mutate(children, pm, k, lb, ub, rng)
+        hist["clipped_pairs"].append(self._n_clipped / max(1, int(cross.sum())))
         # (3) evaluate children, anneal the best n0, replace the n0 worst
         Fc = problem.batch_fitness(children)
         fc = self._fitness(problem, Fc, T)
@@ -473,10 +482,12 @@ class ASAGA:
             order = np.argsort(-fc, kind="stable")
             best_idx = order[:self.n_anneal]
             Y, FY, fY = children[best_idx].copy(), Fc[best_idx].copy(), fc[best_idx].copy()
+            Yb, FYb, fYb = Y.copy(), FY.copy(), fY.copy()
             n_a = np.zeros(self.n_anneal, dtype=int)
             n_c = np.zeros(self.n_anneal, dtype=int)
             active = np.ones(self.n_anneal, dtype=bool)
             d = self.delta(T)
+            n_moves = 0
             while np.any(active):
                 idx = np.flatnonzero(active)
                 Yn = self.neighbour(Y[idx], d, lb, ub, rng)
@@ -485,13 +496,19 @@ class ASAGA:
                 with np.errstate(over="ignore"):
                     p_acc = np.where(fn >= fY[idx], 1.0, np.exp(-(fY[idx] - fn) / temp))
                 acc = rng.random(idx.size) < p_acc
+                n_moves += idx.size
                 j = idx[acc]
                 Y[j], FY[j], fY[j] = Yn[acc], Fn[acc], fn[acc]
                 n_a[j] += 1
+                better = j[fY[j] > fYb[j]]
+                Yb[better], FYb[better], fYb[better] = Y[better], FY[better], fY[better]
                 cont = (n_a[idx] < self.n_accept_min) & (n_c[idx] < self.n_inner_max)
                 n_c[idx[cont]] += 1
                 active[idx[~cont]] = False
+            hist["anneal_acceptance"].append(int(n_a.sum()) / max(1, n_moves))
             worst = np.argsort(fc, kind="stable")[:self.n_anneal]
+            if self.anneal_result == "best":
+                Y, FY = Yb, FYb
             children[worst], Fc[worst] = Y, FY
         # (4) elitism: a random child becomes the recorded best
         j = int(rng.integers(0, n))
