@@ -39,6 +39,7 @@ import numpy as np
 
 from lunar_env import dynamics as dyn
 from lunar_env.scenarios import PlanarScenario
+from lunar_env.validation import require_finite_positive
 
 __all__ = ["CollocationSolution", "solve_planar_min_time_collocation", "initial_state_nd"]
 
@@ -62,7 +63,7 @@ class CollocationSolution:
     states_nd : ndarray, shape (N + 1, 5)
         Node states (r, v, θ, ω, m).
     phi_rad : ndarray, shape (N + 1,)
-        Thrust angle at the nodes.
+        Thrust angle at the nodes, wrapped to [−π, π).
     costates_nd : ndarray, shape (N, 5)
         Costate estimates λ(t_{k+½}) ≈ −ν_k from the Simpson defect multipliers (see the
         module docstring), normalised with λ0 = 1.
@@ -144,6 +145,7 @@ def solve_planar_min_time_collocation(
     tol: float = 1e-10,
     print_level: int = 0,
     max_iter: int = 500,
+    min_radius_m: float | None = None,
 ) -> CollocationSolution:
     """Minimum-time planar landing by separated Hermite–Simpson collocation (CasADi + IPOPT).
 
@@ -161,6 +163,10 @@ def solve_planar_min_time_collocation(
         IPOPT verbosity (0 silent).
     max_iter : int
         IPOPT iteration limit.
+    min_radius_m : float, optional
+        Path constraint r ≥ min_radius_m at every node and midpoint (e.g. the surface radius,
+        for states whose unconstrained optimum would pass below the ground). Default: none
+        (the problem the indirect solver solves).
 
     Returns
     -------
@@ -233,6 +239,9 @@ def solve_planar_min_time_collocation(
     n_state_vars = nx + 5 * n
     lbw_states = lbw[:n_state_vars].reshape(-1, 5)  # view: node rows, then midpoint rows
     lbw_states[1:, dyn.R] = 0.5
+    if min_radius_m is not None:
+        require_finite_positive("min_radius_m", min_radius_m)
+        lbw_states[1:, dyn.R] = max(0.5, float(s.length_nd(min_radius_m)))
     lbw_states[1:, dyn.M] = 0.05
     lbw[-1] = 1e-3 * tf0
     ubw[-1] = 20.0 * tf0
@@ -247,7 +256,7 @@ def solve_planar_min_time_collocation(
     lam_g = np.asarray(sol["lam_g"]).ravel()
     states = wv[:nx].reshape(n + 1, 5)
     off = nx + 5 * n
-    phi = wv[off:off + n + 1]
+    phi = np.mod(wv[off:off + n + 1] + np.pi, 2.0 * np.pi) - np.pi  # wrap to [−π, π)
     tf_nd = float(wv[-1])
     costates = -lam_g[:5 * n].reshape(n, 5)
     flow = scenario.vehicle.mass_flow_kg_s

@@ -67,6 +67,22 @@ Accuracy check
 terminal errors in SI; ``"doubling"`` re-integrates the state–costate system with 2·n_steps
 (estimates the RK4 error, cheap); ``"grid"`` reports the shooting residual itself.
 
+Paper 000's nominal case
+------------------------
+``zhu2007`` (g0 = 9.8 as in the paper): fuel **277.58520 kg**, tf **604.51888 s**, final thrust
+angle 35.4°; terminal errors on the DOP853 replay ≈ 2e-7 m and 4e-10 m/s. An independent
+direct method, Hermite–Simpson collocation with IPOPT (:mod:`optimizers.planar_collocation`,
+100 intervals), gives 277.585200 kg (agreement < 1e-6 kg, tested).
+
+The paper reports 277.5765 kg, 0.0087 kg (0.003 %) less. Not explained by constants: g0 =
+9.80665 instead of 9.8 moves our optimum to 277.4571 kg (−0.128 kg), μ = 4902.8026 km³/s² to
+277.5856 kg; the stated ω0 = 9.65e-4 rad/s is used exactly (v_t0 = 1691.645 m/s). The
+measured sensitivity ∂fuel/∂v_t0 = 0.100 kg per m/s puts the gap at the fuel worth of 0.09 m/s
+of Δv, the size of the terminal-speed tolerances the paper accepts (its ASAGA runs end at
+0.06–0.11 m/s), so the paper's indirect value is most likely a solution converged to a
+looser terminal tolerance or integration accuracy. (Reproduce: the docstring numbers are
+printed by ``python -m optimizers.pontryagin``.)
+
 Public API
 ----------
 :func:`solve_planar_min_fuel`, :func:`solve_many`, :class:`PontryaginSolution`,
@@ -100,6 +116,7 @@ __all__ = [
     "PontryaginGuess", "PontryaginSolution", "PontryaginExpert", "solve_planar_min_fuel",
     "solve_many", "nominal_guess", "nearest_neighbour_order", "optimal_thrust_angle",
     "hamiltonian", "replay_reference", "STATUS_OPTIMAL", "STATUS_HOLD", "STATUS_FALLBACK",
+    "STATUS_CONSTRAINED",
 ]
 
 # Index of the state-costate vector z = (x, λ) (10,).
@@ -933,6 +950,7 @@ def solve_many(
 STATUS_OPTIMAL = "optimal"
 STATUS_HOLD = "hold"
 STATUS_FALLBACK = "fallback"
+STATUS_CONSTRAINED = "constrained"
 
 
 class PontryaginExpert:
@@ -948,6 +966,9 @@ class PontryaginExpert:
     * ``"hold"``: less than ``hold_time_s`` of the previous plan is left. Shooting is
       ill-conditioned as the time to go vanishes, so the previous plan's angle at the current
       time is returned (open-loop over the last seconds).
+    * ``"constrained"``: the unconstrained extremal passes below the surface; φ comes from a
+      coarse collocation with the path constraint r ≥ surface radius (a direct method, ~0.1 s).
+      Not remembered as a warm start.
     * ``"fallback"``: no extremal from this state (e.g. too low or too fast to land, or not
       enough propellant): best effort, full braking along the negative relative velocity,
       φ = atan2(−v, v_t) (straight up, φ = π/2, when the lander is at rest).
@@ -1073,6 +1094,113 @@ class PontryaginExpert:
         sol = solve_planar_min_fuel(sc, row, guess=guess, n_steps=self.n_steps,
                                     n_jac_steps=self.n_jac_steps, tol=self.tol, check="grid")
         if not sol.success:
+            if "below the surface" in sol.message:
+                # The unconstrained extremal dips under the ground: plan with r >= surface.
+                col = solve_planar_min_time_collocation(
+                    sc, row, n_intervals=30, tol=1e-8, min_radius_m=sc.surface_radius_m)
+                if col.success and col.fuel_kg < row[4] - sc.vehicle.dry_mass_kg:
+                    return float(col.phi_rad[0]), STATUS_CONSTRAINED, col.fuel_kg
             return self.braking_angle(row), STATUS_FALLBACK, math.nan
         self._memory[b] = (sol, t, float(row[4]))
         return float(optimal_thrust_angle(sol.x0_nd, sol.costates0)), STATUS_OPTIMAL, sol.fuel_kg
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line: the numbers of the module docstring, measured
+# ---------------------------------------------------------------------------------------------
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m optimizers.pontryagin [--scenario zhu2007] [--n 1000] [--workers 1]
+    [--json FILE]``: nominal optimum with its DOP853 check, the independent collocation value,
+    the paper-comparison variants, and the timing of a batch of dispersed states."""
+    import argparse
+    import dataclasses
+    import json
+
+    from lunar_env.scenarios import get_scenario
+
+    ap = argparse.ArgumentParser(prog="python -m optimizers.pontryagin", description=main.__doc__)
+    ap.add_argument("--scenario", default="zhu2007")
+    ap.add_argument("--n", type=int, default=1000, help="dispersed states to solve (0: none)")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=2007)
+    ap.add_argument("--json", default=None, help="write the measured values to this file")
+    args = ap.parse_args(argv)
+    sc = get_scenario(args.scenario)
+    out: dict = {"scenario": sc.name}
+
+    t0 = time.perf_counter()
+    sol = solve_planar_min_fuel(sc)
+    first = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    again = solve_planar_min_fuel(sc)
+    second = time.perf_counter() - t0
+    print(f"{sc.name}: {sol.message}")
+    print(f"  optimum fuel {sol.fuel_kg:.6f} kg, tf {sol.tf_s:.6f} s, final angle "
+          f"{math.degrees(sol.thrust_angle_at(sol.tf_s)):.3f} deg")
+    print("  terminal errors (DOP853 replay): " + ", ".join(
+        f"{k} {v:.2e}" for k, v in sol.terminal_errors.items()))
+    print(f"  wall: first call {first:.3f} s (CasADi build + collocation start), "
+          f"second {second:.3f} s")
+    out["pontryagin"] = {"fuel_kg": sol.fuel_kg, "tf_s": sol.tf_s, "success": sol.success,
+                         "terminal_errors": sol.terminal_errors, "wall_first_s": first,
+                         "wall_second_s": second, "costates0": sol.costates0.tolist()}
+    del again
+
+    t0 = time.perf_counter()
+    col = solve_planar_min_time_collocation(sc, n_intervals=100)
+    print(f"  independent: Hermite-Simpson collocation (100 intervals, IPOPT) {col.fuel_kg:.6f} "
+          f"kg, tf {col.tf_s:.6f} s ({col.message}, {time.perf_counter() - t0:.2f} s); "
+          f"difference {col.fuel_kg - sol.fuel_kg:+.2e} kg")
+    out["collocation"] = {"fuel_kg": col.fuel_kg, "tf_s": col.tf_s, "success": col.success}
+
+    if sc.name == "zhu2007":
+        variants = {
+            "g0 = 9.80665": dataclasses.replace(
+                sc, vehicle=dataclasses.replace(sc.vehicle, g0_m_s2=9.80665)),
+            "mu = 4902.8026e9": dataclasses.replace(
+                sc, body=dataclasses.replace(sc.body, mu_m3_s2=4902.8026e9)),
+        }
+        out["variants"] = {}
+        print("  paper 000 reports 277.5765 kg; variants:")
+        for name, var in variants.items():
+            v = solve_planar_min_fuel(var, check="grid")
+            out["variants"][name] = v.fuel_kg
+            print(f"    {name:18s} {v.fuel_kg:.4f} kg")
+        x = np.array([sc.initial.radius_m, sc.initial.radial_velocity_m_s, 0.0,
+                      sc.initial.tangential_velocity_m_s, sc.vehicle.mass_kg])
+        fuels = []
+        for dv in (-0.1, 0.1):
+            fuels.append(solve_planar_min_fuel(sc, x + np.array([0, 0, 0, dv, 0]), guess=sol,
+                                               check="grid").fuel_kg)
+        sens = (fuels[1] - fuels[0]) / 0.2
+        out["dfuel_dvt0_kg_per_m_s"] = sens
+        print(f"    d fuel / d v_t0    {sens:.4f} kg per m/s -> the gap "
+              f"{sol.fuel_kg - 277.5765:.4f} kg is worth {(sol.fuel_kg - 277.5765) / sens:.3f} m/s")
+
+    if args.n > 0:
+        rng = np.random.default_rng(args.seed)
+        states = sc.sample_initial(rng, args.n)
+        t0 = time.perf_counter()
+        sols = solve_many(sc, states, n_workers=args.workers, progress=True)
+        wall = time.perf_counter() - t0
+        ok = np.array([s.success for s in sols])
+        fuel = np.array([s.fuel_kg for s in sols])
+        per = np.array([s.wall_s for s in sols])
+        print(f"  {args.n} dispersed states (seed {args.seed}, {args.workers} worker(s)): "
+              f"{ok.sum()} solved, batch wall {wall:.2f} s = {1e3 * wall / args.n:.2f} ms/state "
+              f"(median solve {1e3 * np.median(per):.2f} ms, max {1e3 * per.max():.1f} ms); "
+              f"fuel {fuel.min():.3f}..{fuel.max():.3f} kg")
+        out["batch"] = {"n": args.n, "n_success": int(ok.sum()), "wall_s": wall,
+                        "ms_per_state": 1e3 * wall / args.n,
+                        "median_solve_ms": float(1e3 * np.median(per)),
+                        "fuel_kg_min": float(fuel.min()), "fuel_kg_max": float(fuel.max())}
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(out, fh, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
