@@ -123,6 +123,14 @@ class PygmoProblem:
     def has_batch_fitness(self) -> bool:
         return True
 
+    def gradient(self, x):
+        """Dense Jacobian of the fitness, flattened row-major (pygmo's dense sparsity), when
+        the wrapped problem has ``gradient(x) -> (n_f, dim)``."""
+        return np.asarray(self.problem.gradient(np.asarray(x, dtype=np.float64))).ravel()
+
+    def has_gradient(self) -> bool:
+        return callable(getattr(self.problem, "gradient", None))
+
     def get_bounds(self):
         lb, ub = self.problem.get_bounds()
         return (list(lb), list(ub))
