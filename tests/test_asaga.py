@@ -1,0 +1,131 @@
+"""ASAGA ([000] Zhu & Xu 2007): operators, adaptive rates, determinism, progress, resume."""
+
+import numpy as np
+import pytest
+
+from optimizers.asaga import ASAGA, paper_penalty_weights
+from optimizers.problems.landing import PlanarLandingProblem
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return PlanarLandingProblem()
+
+
+def test_paper_defaults():
+    a = ASAGA()
+    assert (a.n_pop, a.n_generations, a.t0, a.kappa) == (20, 300, 10000.0, 0.97)
+    assert (a.n_accept_min, a.n_inner_max, a.n_anneal, a.n_recross_max) == (10, 10, 2, 10)
+    assert a.temperature(1) == 10000.0
+    assert a.temperature(300) == pytest.approx(10000 * 0.97**299)
+    assert a.delta(1) == 0.5 and a.delta(300) == pytest.approx(0.5 / 300)
+    assert paper_penalty_weights(0, 300) == (5.0, 1.0)
+    assert paper_penalty_weights(300, 300) == pytest.approx((50.0, 10.0))
+
+
+def test_adaptive_rates_eq15_18():
+    a = ASAGA()
+    T = 150  # r1 = 0.375, k1 = 0.3
+    f_max, f_avg = 1.0, 0.5
+    pc, r = a.adaptive_rates(np.array([1.0, 0.75, 0.2]), f_max, f_avg, T, "crossover")
+    np.testing.assert_allclose(pc, [0.7, 0.8, 0.9])
+    np.testing.assert_allclose(r, [0.375, 0.375 + 0.25, 0.375 + 0.5])
+    pm, k = a.adaptive_rates(np.array([1.0, 0.75, 0.2]), f_max, f_avg, T, "mutation")
+    np.testing.assert_allclose(pm, [0.005, 0.0075, 0.01])
+    np.testing.assert_allclose(k, [0.3, 0.55, 0.8])
+    pc, r = a.adaptive_rates(np.array([0.3]), 0.3, 0.3, T, "crossover")  # flat population
+    assert np.isfinite(pc).all() and np.isfinite(r).all()
+
+
+def test_operators_respect_bounds_and_are_seeded():
+    a = ASAGA()
+    rng = np.random.default_rng(0)
+    lb = np.zeros(11)
+    ub = np.r_[9.0 * np.arange(1, 11), 700.0]
+    lb[-1] = 500.0
+    A = lb + (ub - lb) * rng.random((50, 11))
+    B = lb + (ub - lb) * rng.random((50, 11))
+    r = rng.uniform(0.2, 1.0, 50)
+    for op in range(3):
+        out1 = out2 = None
+        for _ in range(2):
+            g = np.random.default_rng(42)
+            if op == 0:
+                out = np.concatenate(a.crossover(A, B, r, lb, ub, g))
+            elif op == 1:
+                out = a.mutate(A, np.full(50, 0.5), np.full(50, 1.0), lb, ub, g)
+            else:
+                out = a.neighbour(A, 0.5, lb, ub, g)
+            out1, out2 = out, out1
+        assert np.all(out1 >= lb) and np.all(out1 <= ub)
+        np.testing.assert_array_equal(out1, out2)
+    # crossover eq. (12): A' + B' = A + B whenever no clipping was needed
+    g = np.random.default_rng(1)
+    a2, b2 = a.crossover(A[:1] * 0 + (lb + ub) / 2, B[:1] * 0 + (lb + ub) / 2, np.array([0.05]),
+                         lb, ub, g)
+    np.testing.assert_allclose((a2 + b2)[0], lb + ub)
+    # roulette respects the weights
+    idx = a.roulette(np.array([0.0, 1.0, 0.0]), 100, np.random.default_rng(0))
+    assert np.all(idx == 1)
+
+
+def test_seeded_runs_are_deterministic(problem):
+    algo = ASAGA(n_generations=8)
+    r1 = algo.solve(problem, seed=7)
+    r2 = algo.solve(problem, seed=7)
+    r3 = algo.solve(problem, seed=8)
+    np.testing.assert_array_equal(r1.x, r2.x)
+    np.testing.assert_array_equal(r1.history, r2.history)
+    assert not np.array_equal(r1.x, r3.x)
+    lb, ub = problem.get_bounds()
+    assert np.all(r1.x >= lb) and np.all(r1.x <= ub)
+
+
+def test_short_run_improves_fitness(problem):
+    # constant penalty weights: with elitism the best fitness can only grow
+    algo = ASAGA(n_generations=40, penalty_weights=lambda T, Tmax: (50.0, 10.0))
+    res = algo.solve(problem, seed=3)
+    h = res.history
+    assert len(h) == 40 and np.all(np.diff(h) >= -1e-12)
+    assert h[-1] > h[0]
+    assert res.n_fevals >= 40 * 20
+    assert res.fuel_kg == pytest.approx(problem.fitness(res.x)[0])
+    assert set(res.terminal_errors) >= {"speed_m_s", "radius_m"}
+    assert res.wall_s > 0 and isinstance(res.success, bool) and res.message
+
+
+def test_checkpoint_resume_equals_uninterrupted(problem, tmp_path):
+    algo = ASAGA(n_generations=12)
+    full = algo.solve(problem, seed=5)
+    ck = tmp_path / "asaga.pkl"
+    part = algo.solve(problem, seed=5, checkpoint=ck, checkpoint_every=4,
+                      callback=lambda T, s: T == 6)  # "interrupted" after generation 6
+    assert part.extra["n_generations"] == 6
+    # the checkpoint on disk is at generation 4; resuming repeats 5..12 with the saved stream
+    resumed = ASAGA(n_generations=12).solve(problem, seed=999, checkpoint=ck)
+    np.testing.assert_array_equal(resumed.x, full.x)
+    np.testing.assert_array_equal(resumed.history, full.history)
+
+
+def test_trajectory_on_request_and_progress(problem, capsys):
+    res = ASAGA(n_generations=3, verbose=1).solve(problem, seed=1, return_trajectory=True)
+    assert "ASAGA gen    3/3" in capsys.readouterr().out
+    tr = res.trajectory
+    assert tr is not None and tr.t_s[-1] == pytest.approx(res.tf_s)
+
+
+def test_pygmo_uda(problem):
+    pg = pytest.importorskip("pygmo")
+    algo = pg.algorithm(ASAGA(n_generations=5))
+    pop = pg.population(problem.to_pygmo(), size=20, seed=2)
+    pop = algo.evolve(pop)
+    assert len(pop) == 20 and np.all(np.isfinite(pop.get_f()))
+
+
+def test_bad_settings_raise():
+    with pytest.raises(ValueError, match="n_pop"):
+        ASAGA(n_pop=21)
+    with pytest.raises(ValueError, match="kappa"):
+        ASAGA(kappa=1.5)
+    with pytest.raises(ValueError, match="fitness_units"):
+        ASAGA(fitness_units="kg")
