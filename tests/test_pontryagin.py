@@ -6,6 +6,7 @@ import pytest
 from lunar_env import dynamics as dyn
 from lunar_env.scenarios import get_scenario
 from optimizers.planar_collocation import solve_planar_min_time_collocation
+from optimizers.planar_direct_shooting import solve_planar_min_time_polynomial
 from optimizers.pontryagin import (
     STATUS_FALLBACK,
     STATUS_OPTIMAL,
@@ -103,6 +104,20 @@ def test_independent_direct_collocation_agrees(scenario, nominal):
     lam_col = col.costates_nd[0]
     lam_ind = nominal.state_costate_at(col.t_mid_nd[0] * scenario.scaling().time_s)[0, 5:]
     assert np.allclose(lam_col, lam_ind, atol=2e-3)
+
+
+def test_independent_direct_shooting_through_the_compiled_integrator(scenario, nominal):
+    """Polynomial thrust angle, SLSQP, lunar_env.integrators.integrate (numba RK4)."""
+    rich = solve_planar_min_time_polynomial(scenario, degree=7)
+    assert rich.success, rich.message
+    assert rich.terminal_errors["radius_m"] < 1e-5
+    assert rich.fuel_kg == pytest.approx(nominal.fuel_kg, abs=1e-5)
+    t = np.linspace(0.0, rich.tf_s, 50)
+    assert np.max(np.abs(rich.thrust_angle_at(t, scenario) - nominal.thrust_angle_at(t))) < 2e-3
+    # Paper 000's cubic is a restriction of the control space: an upper bound, barely above.
+    cubic = solve_planar_min_time_polynomial(scenario, degree=3)
+    assert cubic.success, cubic.message
+    assert nominal.fuel_kg - 1e-6 < cubic.fuel_kg < nominal.fuel_kg + 1e-4
 
 
 def test_dispersed_states_solve_warm_started(scenario, nominal):
