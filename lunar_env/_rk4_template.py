@@ -41,11 +41,40 @@ def control_at(breaks, coefs, i, k, t, burn):
     return u
 
 
+def control_in(breaks, coefs, i, k, t, burn):
+    """Control tuple of trajectory i at time t evaluated on segment k (no segment search).
+
+    An RK4 step evaluates all its stages, including the one at its end point, on the segment
+    that contains the step's start: a control held over [t, t + h] (a zero-order hold, an env
+    step) is then integrated exactly as held, also when the next segment starts at t + h.
+    """
+    order = coefs.shape[3]
+    tau = t - breaks[i, k]
+    u = UZERO
+    for j in range(len(u)):
+        acc = coefs[i, k, j, order - 1]
+        for q in range(order - 2, -1, -1):
+            acc = acc * tau + coefs[i, k, j, q]
+        u = tuple_setitem(u, j, acc)
+    last = len(u) - 1
+    u = tuple_setitem(u, last, u[last] * burn)
+    return u
+
+
+def segment_at(breaks, coefs, i, k, t):
+    """Segment containing t, searched forward from k; a break within 1e-12 (relative) after t
+    counts as reached, so grid points that round just below a break start the new segment."""
+    n_seg = coefs.shape[1]
+    while k < n_seg - 1 and t >= breaks[i, k + 1] - 1e-12 * (1.0 + abs(t)):
+        k += 1
+    return k
+
+
 def rk4_step(y, t, h, breaks, coefs, i, k, burn, p):
     """One classical RK4 step of length h from (t, y)."""
-    u0 = control_at(breaks, coefs, i, k, t, burn)
-    u1 = control_at(breaks, coefs, i, k, t + 0.5 * h, burn)
-    u2 = control_at(breaks, coefs, i, k, t + h, burn)
+    u0 = control_in(breaks, coefs, i, k, t, burn)
+    u1 = control_in(breaks, coefs, i, k, t + 0.5 * h, burn)
+    u2 = control_in(breaks, coefs, i, k, t + h, burn)
     k1 = DERIV(y, u0, p)
     yt = y
     for j in range(len(y)):
@@ -70,7 +99,7 @@ def event_value(kind, y, t, breaks, coefs, i, k, burn, p, r_stop, m_dry):
         return RADIUS(y) - r_stop
     if kind == EVENT_FUEL:
         return MASS(y) - m_dry
-    u = control_at(breaks, coefs, i, k, t, burn)
+    u = control_in(breaks, coefs, i, k, t, burn)  # under the step's control (segment k)
     return SPEED_RATE(y, DERIV(y, u, p))
 
 
@@ -151,8 +180,14 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
         s_done = 0
         for s in range(n_steps):
             t_next = t0[i] + (s + 1) * h
-            while k < coefs.shape[1] - 1 and t >= breaks[i, k + 1]:
-                k += 1
+            k_new = segment_at(breaks, coefs, i, k, t)
+            if k_new != k:
+                k = k_new
+                # a speed minimum is judged under a held control: restart the speed-rate
+                # sign at the new segment (a kink at the break itself is not an event)
+                if stop_at_speed_min:
+                    g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn, p,
+                                          rs, m_dry)
             while True:
                 hh = t_next - t
                 y1 = rk4_step(y, t, hh, breaks, coefs, i, k, burn, p)

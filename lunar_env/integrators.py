@@ -5,7 +5,11 @@ numba kernel (parallel over trajectories, ``cache=True``). Controls are open-loo
 polynomials in time (:class:`PiecewisePolynomial`): a least-squares cubic (paper 000) is one
 segment of order 4; an environment step with a held action is one segment of order 1; a spline
 through nodes (paper 001) is one cubic segment per knot interval. Align RK4 steps with segment
-breaks: a break inside a step costs RK4 its order.
+breaks: a break inside a step costs RK4 its order. Each RK4 step evaluates all its stages (and
+the speed-minimum event function) on the segment containing the step's start, so a
+piecewise-constant control with breaks on the grid is integrated exactly as a zero-order hold,
+the same arithmetic as stepping an environment one held action at a time; a kink of the speed
+at a break is not a speed-minimum event.
 
 Events, located inside the step on the RK4 solution itself (root-finding on the partial step
 length, not stopping at the next grid point):
@@ -49,7 +53,8 @@ _PARALLEL_MIN_BATCH = 32
 # Inlined at numba-IR level on the hot path; the rarely called event code is left as calls to
 # keep compile time down.
 _INLINED: tuple[str, ...] = ()
-_TEMPLATE_FUNCTIONS = ("control_at", "rk4_step", "event_value", "is_after", "locate", "propagate")
+_TEMPLATE_FUNCTIONS = ("control_at", "control_in", "segment_at", "rk4_step", "event_value",
+                       "is_after", "locate", "propagate")
 
 
 def _instantiate(model_name: str, bindings: dict) -> tuple:

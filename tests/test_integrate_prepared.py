@@ -36,3 +36,37 @@ def test_integrate_prepared_equals_integrate(name):
         np.testing.assert_array_equal(st, ref.status)
         np.testing.assert_array_equal(tb, ref.t_burnout)
     assert len(set(ref.status.tolist())) >= 2  # the batch exercises events, not just the grid
+
+
+@pytest.mark.parametrize("name", ["zhu2007", "peng2012"])
+def test_piecewise_constant_on_the_grid_is_a_zero_order_hold(name):
+    """One integrate call over a piecewise-constant control with breaks on the RK4 grid gives
+    the same states as integrating one held segment at a time (as an env does), including
+    across a control jump that turns a decreasing speed into an increasing one (no event)."""
+    sc = get_scenario(name)
+    s = sc.scaling()
+    params = sc.params(s)
+    model = integ.PLANAR if sc.model == "planar" else integ.MOON3D
+    rng = np.random.default_rng(1)
+    n_seg, sub = 30, 4
+    dt = float(s.time_nd(1.0))
+    u = rng.uniform(-1.0, 1.0, (n_seg, model.n_control))
+    u[:, -1] = 1.0
+    breaks = (np.arange(n_seg + 1) * dt)[None]
+    whole = integ.integrate(model, sc.state_nd()[None], t0_nd=0.0, dt_nd=dt / sub,
+                            n_steps=n_seg * sub,
+                            control=integ.PiecewisePolynomial(breaks, u[None, :, :, None]),
+                            params=params, dry_mass_nd=0.5, events=(integ.SpeedMinimum(),),
+                            record=True)
+    y = sc.state_nd()[None]
+    for k in range(n_seg):
+        ctl = integ.PiecewisePolynomial.constant(u[k][None], k * dt, (k + 1) * dt)
+        step = integ.integrate(model, y, t0_nd=k * dt, dt_nd=dt / sub, n_steps=sub, control=ctl,
+                               params=params, dry_mass_nd=0.5, events=(integ.SpeedMinimum(),))
+        if step.status[0] != integ.STATUS_COMPLETED:
+            assert whole.status[0] == step.status[0]
+            np.testing.assert_allclose(whole.y_end, step.y_end, rtol=0, atol=1e-12)
+            return
+        y = step.y_end
+        np.testing.assert_allclose(whole.states[0, sub * (k + 1)], y[0], rtol=0, atol=1e-12)
+    assert whole.status[0] == integ.STATUS_COMPLETED
