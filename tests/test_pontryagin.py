@@ -8,7 +8,9 @@ from lunar_env.scenarios import get_scenario
 from optimizers.planar_collocation import solve_planar_min_time_collocation
 from optimizers.planar_direct_shooting import solve_planar_min_time_polynomial
 from optimizers.pontryagin import (
+    STATUS_CONSTRAINED,
     STATUS_FALLBACK,
+    STATUS_HOLD,
     STATUS_OPTIMAL,
     PontryaginExpert,
     PontryaginGuess,
@@ -159,6 +161,19 @@ def test_expert_returns_optimal_and_finite_angles(scenario, nominal):
                                              "tangential_velocity_m_s", "mass_kg")], axis=1)
     for k in range(1, 4):
         assert expert(rows[k]) == pytest.approx(traj.controls["phi_rad"][k], abs=1e-5)
+    # In the last seconds of the plan the expert holds the previous plan's angle.
+    late = nominal.trajectory(2001)
+    k = np.searchsorted(late.t_s, nominal.tf_s - 1.0)
+    row = np.array([late.states[n][k] for n in ("radius_m", "radial_velocity_m_s", "theta_rad",
+                                               "tangential_velocity_m_s", "mass_kg")])
+    assert expert(row) == pytest.approx(late.controls["phi_rad"][k], abs=1e-6)
+    assert expert.last_status == [STATUS_HOLD]
+    # 500 m up, 22 m/s down, 1531 m/s along: the unconstrained extremal passes below ground,
+    # the expert plans with r >= surface instead.
+    expert.reset()
+    dip = np.array([1738.0e3 + 492.6, -22.2, 0.0, 1530.7, 614.5])
+    assert np.isfinite(expert(dip))
+    assert expert.last_status == [STATUS_CONSTRAINED]
     # A batch with one hopeless row: 50 m up, falling at 100 m/s.
     bad = np.array([1738.0e3 + 50.0, -100.0, 0.0, 1600.0, 400.0])
     expert.reset()
@@ -166,6 +181,18 @@ def test_expert_returns_optimal_and_finite_angles(scenario, nominal):
     assert out.shape == (2,) and np.all(np.isfinite(out))
     assert expert.last_status == [STATUS_OPTIMAL, STATUS_FALLBACK]
     assert out[1] == pytest.approx(np.arctan2(100.0, 1600.0))
+
+
+def test_heliocentric_low_thrust_transfer_solves():
+    """The same problem with paper 002's constants: Earth-to-Mars, minimum time = maximum mass."""
+    mars = get_scenario("peng_mars")
+    sol = solve_planar_min_fuel(mars, check="doubling")  # RK4 error estimate
+    assert sol.success, sol.message
+    tf_nd = sol.tf_nd
+    assert 3.5 <= tf_nd <= 4.0  # the paper's normalised tf bounds contain the optimum
+    rel = sol.terminal_errors["radius_m"] / mars.target.radius_m
+    assert rel < 1e-8
+    assert np.max(np.abs(sol.trajectory(101).states["hamiltonian"])) < 1e-6
 
 
 def test_bad_input_raises(scenario):
