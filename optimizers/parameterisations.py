@@ -64,6 +64,7 @@ class NodePolynomial:
         vander = self.node_fractions[:, None] ** np.arange(degree + 1)[None, :]
         # (degree+1, n_nodes): maps node values to least-squares coefficients in s
         self._projection = np.linalg.pinv(vander)
+        self._powers = np.arange(degree + 1)[None, :]
 
     @property
     def order(self) -> int:
@@ -100,7 +101,9 @@ class NodePolynomial:
         ndarray, shape (batch, degree + 1)
             Ascending powers of s.
         """
-        v = np.atleast_2d(np.asarray(node_values, dtype=np.float64))
+        v = np.asarray(node_values, dtype=np.float64)
+        if v.ndim == 1:
+            v = v[None, :]
         if v.shape[-1] != self.n_nodes:
             raise ValueError(f"node_values has {v.shape[-1]} columns; this parameterisation "
                              f"has n_nodes = {self.n_nodes}")
@@ -113,12 +116,11 @@ class NodePolynomial:
         integrators use normalised time).
         """
         a = self.fit(node_values)
-        t0 = np.broadcast_to(np.asarray(t0, dtype=np.float64), a.shape[:1])
-        tf = np.broadcast_to(np.asarray(tf, dtype=np.float64), a.shape[:1])
-        span = tf - t0
+        span = np.asarray(tf, dtype=np.float64) - np.asarray(t0, dtype=np.float64)
         if not np.all(span > 0):
             raise ValueError("tf must be > t0 for every candidate")
-        return a / span[:, None] ** np.arange(self.order)[None, :]
+        span = np.broadcast_to(span, a.shape[:1])
+        return a / span[:, None] ** self._powers
 
     def evaluate(self, node_values: np.ndarray, s: np.ndarray) -> np.ndarray:
         """Fitted polynomial at normalised times ``s`` (shape (n_s,)); returns (batch, n_s)."""
@@ -147,9 +149,10 @@ class NodePolynomial:
         """
         c = self.time_coefficients(node_values, t0, tf)
         batch = c.shape[0]
-        coefs = np.zeros((batch, 2, self.order))
-        coefs[:, 0, :] = c
-        coefs[:, 1, 0] = np.broadcast_to(np.asarray(throttle, dtype=np.float64), (batch,))
-        t0 = np.broadcast_to(np.asarray(t0, dtype=np.float64), (batch,))
-        tf = np.broadcast_to(np.asarray(tf, dtype=np.float64), (batch,))
-        return PiecewisePolynomial.polynomial(coefs, t0, tf)
+        coefs = np.zeros((batch, 1, 2, self.order))
+        coefs[:, 0, 0, :] = c
+        coefs[:, 0, 1, 0] = throttle
+        breaks = np.empty((batch, 2))
+        breaks[:, 0] = t0
+        breaks[:, 1] = tf
+        return PiecewisePolynomial(breaks, coefs)
