@@ -761,9 +761,25 @@ def replay_reference(sol: PontryaginSolution, *, rtol: float = 1e-13,
     """
     from lunar_env.integrators import PLANAR, integrate_reference
 
+    # Scalar fast path of the cubic Hermite interpolant for the three components φ* needs
+    # (r, λ_v, λ_ω): scipy calls this ~10⁴ times.
+    g = sol._grid()
+    rows = [dyn.R, _LAM + dyn.VR, _LAM + dyn.OMEGA]
+    h = float(g["t"][1] - g["t"][0])
+    z = g["z"][rows].T.copy()
+    dz = g["dz"][rows].T.copy() * h
+    n_seg = sol.n_steps
+    t_end = float(g["t"][-1])
+
     def control(t_nd):
-        z = sol._interp(t_nd)
-        return np.array([optimal_thrust_angle(z[0, :5], z[0, 5:]), 1.0])
+        t = min(max(float(t_nd), 0.0), t_end)
+        k = min(int(t / h), n_seg - 1)
+        s = t / h - k
+        s2 = s * s
+        s3 = s2 * s
+        h00, h10, h01, h11 = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2
+        r, lv, lw = h00 * z[k] + h10 * dz[k] + h01 * z[k + 1] + h11 * dz[k + 1]
+        return (math.atan2(-lv, lw / r), 1.0)
 
     out = integrate_reference(PLANAR, sol.x0_nd, (0.0, sol.tf_nd), control,
                               sol.scenario.params(), rtol=rtol, atol=atol)
@@ -874,7 +890,9 @@ def solve_many(
         SI rows (r m, vr m/s, θ rad, v_t m/s, m kg), e.g. ``scenario.sample_initial(rng, N)``.
     n_workers : int
         1 solves in this process; more uses a process pool (spawned; each worker builds its
-        CasADi functions once, ~0.5 s) over contiguous chunks of the chain.
+        CasADi functions once, ~0.5 s) over contiguous chunks of the chain. Spawned workers
+        re-import the main module: in a script, call from under ``if __name__ == "__main__":``.
+        On a busy 2-core machine one worker is usually as fast.
     progress : bool
         Show a tqdm progress bar.
     chunk_size : int
