@@ -1178,7 +1178,8 @@ def main(argv: list[str] | None = None) -> int:
     from .planar_direct_shooting import solve_planar_min_time_polynomial
 
     out["direct_shooting"] = {}
-    for degree in (3, 7):
+    # Its first guess (φ rising from 0 to π/2) is a landing's; run it on the landing case only.
+    for degree in (3, 7) if sc.name == "zhu2007" else ():
         ds = solve_planar_min_time_polynomial(sc, degree=degree)
         print(f"  independent: direct shooting, degree-{degree} polynomial angle, compiled RK4 "
               f"(SLSQP) {ds.fuel_kg:.6f} kg ({ds.message}, {ds.wall_s:.2f} s); difference "
