@@ -94,6 +94,7 @@ Public API
 >>> from lunar_env import get_scenario
 >>> sol = solve_planar_min_fuel(get_scenario("zhu2007"))   # doctest: +SKIP
 >>> round(sol.fuel_kg, 3), round(sol.tf_s, 3)               # doctest: +SKIP
+(277.585, 604.519)
 """
 
 from __future__ import annotations
@@ -149,11 +150,7 @@ class _System:
         u_star = ca.vertcat(phi, 1.0)
         z = ca.vertcat(x, lam)
         rhs = ca.vertcat(ca.substitute(f, u, u_star), -ca.substitute(dh_dx, u, u_star))
-        self.z = z
-        self.rhs_expr = rhs
         self.rhs = ca.Function("pmp_rhs", [z], [rhs])
-        self.ham_u = ca.Function("pmp_hamiltonian_u", [x, lam, u[0]],
-                                 [ca.substitute(h_expr, u[1], 1.0)])
         self.ham = ca.Function("pmp_hamiltonian", [z], [ca.substitute(h_expr, u, u_star)])
         self.phi = ca.Function("pmp_phi", [z], [phi])
         zs = ca.SX.sym("zs", 10)
