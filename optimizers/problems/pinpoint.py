@@ -1,0 +1,274 @@
+"""Optimal-control spec of the 3D pinpoint landing on a rotating Moon ([001] Peng et al. 2012).
+
+The problem, in the paper's words (§1.2–1.3), on the Moon-fixed Cartesian model of
+:mod:`lunar_env.dynamics`:
+
+- dynamics: ``lunar_env.dynamics.moon3d_rhs_casadi`` with the throttle fixed at 1 (the engine
+  runs at its constant 1500 N; only the thrust direction (α, β) is steered);
+- initial state: fixed (the scenario's ``state_nd()``);
+- terminal state: the target point (position) and the target relative velocity (u, v, w in the
+  orbital frame at the target; zero for [001]); the mass is free;
+- path constraints: α ∈ [α_min, α_max], β ∈ [β_min, β_max] (simple bounds on the controls),
+  u, w ∈ [−bound, bound] (radial and cross-track relative velocity, orbital-frame projection
+  with the same formulas as :func:`lunar_env.dynamics.moon3d_derived`), fuel used ≤ fuel_max
+  (the mass decreases monotonically, so this is m(tf) ≥ m0 − fuel_max);
+- objective: minimum fuel = minimum tf (constant thrust, [001] eq. (12)–(13)).
+
+Everything is normalised (μ = 1, L = R_L, m_ref = m0) as in the dynamics core; SI values are
+converted at the edges by :class:`lunar_env.scaling.Scaling`.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lunar_env import dynamics as dyn
+from lunar_env.integrators import MOON3D, PiecewisePolynomial, integrate
+from lunar_env.scenarios import PinpointScenario
+
+__all__ = ["PinpointOCP"]
+
+
+def _ca():
+    return dyn._casadi()
+
+
+@dataclass(frozen=True, eq=False)
+class PinpointOCP:
+    """Minimum-time (= minimum-fuel) pinpoint landing, normalised.
+
+    Parameters
+    ----------
+    scenario : PinpointScenario
+        E.g. ``get_scenario("peng2012")``.
+
+    Attributes (derived)
+    --------------------
+    params : Moon3DParams
+    x0_nd : ndarray, shape (7,)
+        Initial Moon-fixed state.
+    target_position_nd : ndarray, shape (3,)
+    target_uvw_nd : ndarray, shape (3,)
+        Target relative velocity in the orbital frame (radial, along-track, cross-track).
+    alpha_bounds_rad, beta_bounds_rad : (float, float)
+    uw_bound_nd : float
+    mass_min_nd : float
+        m0 − fuel_max (normalised): the fuel constraint as a bound on the final mass.
+    tf_bounds_nd : (float, float)
+    """
+
+    scenario: PinpointScenario
+    params: dyn.Moon3DParams = field(init=False, repr=False)
+    x0_nd: np.ndarray = field(init=False, repr=False)
+    target_position_nd: np.ndarray = field(init=False, repr=False)
+    target_uvw_nd: np.ndarray = field(init=False, repr=False)
+    mass_min_nd: float = field(init=False, repr=False)
+    uw_bound_nd: float = field(init=False, repr=False)
+    tf_bounds_nd: tuple[float, float] = field(init=False, repr=False)
+
+    n_state = 7
+    n_control = 2  # (α, β); the throttle is fixed at 1
+
+    def __post_init__(self) -> None:
+        sc = self.scenario
+        if not isinstance(sc, PinpointScenario):
+            raise TypeError(f"scenario must be a PinpointScenario (e.g. get_scenario('peng2012'))"
+                            f", got {type(sc).__name__}")
+        s = sc.scaling()
+        t = sc.target
+        object.__setattr__(self, "params", sc.params(s))
+        object.__setattr__(self, "x0_nd", np.asarray(sc.state_nd(scaling=s), dtype=float))
+        object.__setattr__(self, "target_position_nd", s.length_nd(sc.target_position_m()))
+        object.__setattr__(self, "target_uvw_nd",
+                           s.velocity_nd(np.array([t.u_m_s, t.v_m_s, t.w_m_s])))
+        fuel_max = min(sc.fuel_max_kg, sc.vehicle.mass_kg - sc.vehicle.dry_mass_kg)
+        object.__setattr__(self, "mass_min_nd",
+                           float(s.mass_nd(sc.initial.mass_kg - fuel_max)))
+        object.__setattr__(self, "uw_bound_nd", float(s.velocity_nd(sc.uw_bound_m_s)))
+        object.__setattr__(self, "tf_bounds_nd",
+                           tuple(float(v) for v in s.time_nd(np.array(sc.tf_bounds_s))))
+
+    # ---- conveniences ----------------------------------------------------------------------
+    @property
+    def scaling(self):
+        return self.scenario.scaling()
+
+    @property
+    def alpha_bounds_rad(self) -> tuple[float, float]:
+        return self.scenario.alpha_bounds_rad
+
+    @property
+    def beta_bounds_rad(self) -> tuple[float, float]:
+        return self.scenario.beta_bounds_rad
+
+    @property
+    def control_lower(self) -> np.ndarray:
+        return np.array([self.alpha_bounds_rad[0], self.beta_bounds_rad[0]])
+
+    @property
+    def control_upper(self) -> np.ndarray:
+        return np.array([self.alpha_bounds_rad[1], self.beta_bounds_rad[1]])
+
+    @property
+    def mass_flow_nd(self) -> float:
+        """|dm/dt| at full thrust (normalised)."""
+        return self.params.thrust_nd / self.params.exhaust_velocity_nd
+
+    def fuel_kg(self, tf_nd: float) -> float:
+        """Propellant used by a burn of ``tf_nd`` at constant full thrust (kg)."""
+        return float(self.mass_flow_nd * tf_nd * self.scaling.mass_kg)
+
+    def tf_upper_by_fuel_nd(self) -> float:
+        """Longest burn the fuel budget allows (normalised)."""
+        return (1.0 - self.mass_min_nd) / self.mass_flow_nd
+
+    # ---- symbolic pieces (CasADi) ----------------------------------------------------------
+    def rhs(self, state, control):
+        """Shared right-hand side on CasADi symbols, throttle fixed at 1: (7,), (2,) -> (7,)."""
+        ca = _ca()
+        return dyn.moon3d_rhs_casadi(state, ca.vertcat(control[0], control[1], 1.0), self.params)
+
+    @functools.cached_property
+    def rhs_function(self):
+        """``casadi.Function('f', [x (7), u (2)], [dx (7)])`` built from the shared rhs."""
+        ca = _ca()
+        x = ca.SX.sym("x", 7)
+        u = ca.SX.sym("u", 2)
+        return ca.Function("moon3d_f", [x, u], [self.rhs(x, u)], ["x", "u"], ["dx"])
+
+    def uw(self, state):
+        """Radial u and cross-track w relative velocity (normalised) of a symbolic state.
+
+        The orbital-frame projection of :func:`lunar_env.dynamics.moon3d_derived`, written with
+        :func:`lunar_env.dynamics.orbital_frame` so it evaluates on CasADi symbols.
+        """
+        n = self.params.plane_normal
+        xr, yr, zr, xt, yt, zt, xn, yn, zn = dyn.orbital_frame(
+            state[dyn.X], state[dyn.Y], state[dyn.Z], n[0], n[1], n[2])
+        vx, vy, vz = state[dyn.VX], state[dyn.VY], state[dyn.VZ]
+        return vx * xr + vy * yr + vz * zr, vx * xn + vy * yn + vz * zn
+
+    def uvw(self, state):
+        """(u, v, w) of a symbolic or numeric state (normalised)."""
+        n = self.params.plane_normal
+        xr, yr, zr, xt, yt, zt, xn, yn, zn = dyn.orbital_frame(
+            state[dyn.X], state[dyn.Y], state[dyn.Z], n[0], n[1], n[2])
+        vx, vy, vz = state[dyn.VX], state[dyn.VY], state[dyn.VZ]
+        return (vx * xr + vy * yr + vz * zr, vx * xt + vy * yt + vz * zt,
+                vx * xn + vy * yn + vz * zn)
+
+    def terminal_residual(self, state):
+        """Boundary condition φ(X_f) = 0 ([001] §1.2), shape (6,), normalised.
+
+        Position minus the target point (3), then the relative velocity's orbital-frame
+        components minus the target's (u, v, w). For the zero target velocity of [001] the
+        latter are equivalent to V = 0.
+        """
+        ca = _ca()
+        pos = ca.vertcat(state[dyn.X], state[dyn.Y], state[dyn.Z]) - self.target_position_nd
+        u, v, w = self.uvw(state)
+        tu, tv, tw = self.target_uvw_nd
+        return ca.vertcat(pos, u - tu, v - tv, w - tw)
+
+    # ---- the transcription protocol (see optimizers.gpm) -----------------------------------
+    @property
+    def initial_state(self) -> np.ndarray:
+        return self.x0_nd
+
+    def path_constraints(self, state, control):
+        """Path constraints at a node: (expr, lower, upper) with |u|, |w| <= bound."""
+        ca = _ca()
+        u, w = self.uw(state)
+        b = self.uw_bound_nd
+        return ca.vertcat(u, w), np.array([-b, -b]), np.array([b, b])
+
+    def state_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Loose box on every node state; the mass never goes below m0 − fuel_max."""
+        lo = np.array([-2.0, -2.0, -2.0, -2.0, -2.0, -2.0, self.mass_min_nd])
+        hi = np.array([2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 1.0])
+        return lo, hi
+
+    def objective(self, final_state, tf):
+        """Mayer objective: tf (minimum time = minimum fuel at constant thrust)."""
+        return tf
+
+    # ---- numeric helpers -------------------------------------------------------------------
+    def propagate(self, breaks_nd: np.ndarray, control_nodes_rad: np.ndarray, n_steps: int,
+                  *, record: bool = True):
+        """Integrate a piecewise-linear (α, β) history with the compiled RK4 (no events).
+
+        Parameters
+        ----------
+        breaks_nd : ndarray, shape (n_nodes,)
+            Increasing node times, normalised; the first is t0.
+        control_nodes_rad : ndarray, shape (n_nodes, 2)
+            (α, β) at the nodes; linear in between ([001] eq. (18)).
+        n_steps : int
+            Uniform RK4 steps over [breaks[0], breaks[-1]].
+
+        Returns
+        -------
+        lunar_env.integrators.Propagation
+        """
+        pp = piecewise_linear_control(breaks_nd, control_nodes_rad)
+        t0 = float(breaks_nd[0])
+        dt = (float(breaks_nd[-1]) - t0) / n_steps
+        return integrate(MOON3D, self.x0_nd[None, :], t0_nd=t0, dt_nd=dt, n_steps=n_steps,
+                         control=pp, params=self.params, record=record)
+
+    def describe_states(self, states_nd: np.ndarray) -> dict[str, np.ndarray]:
+        """SI named histories from normalised states (n, 7): position, altitude, lon, lat,
+        u, v, w, mass."""
+        s = self.scaling
+        d = dyn.moon3d_derived(states_nd, self.params)
+        return {
+            "x_m": states_nd[:, dyn.X] * s.length_m,
+            "y_m": states_nd[:, dyn.Y] * s.length_m,
+            "z_m": states_nd[:, dyn.Z] * s.length_m,
+            "altitude_m": d["radius_nd"] * s.length_m - self.scenario.body.radius_m,
+            "longitude_rad": d["longitude_rad"],
+            "latitude_rad": d["latitude_rad"],
+            "u_m_s": d["u_nd"] * s.velocity_m_s,
+            "v_m_s": d["v_nd"] * s.velocity_m_s,
+            "w_m_s": d["w_nd"] * s.velocity_m_s,
+            "mass_kg": states_nd[:, dyn.M3] * s.mass_kg,
+        }
+
+    def terminal_errors(self, xf_nd: np.ndarray) -> dict[str, float]:
+        """SI terminal errors of a final state (7,): miss distance, speed error, altitude error."""
+        s = self.scaling
+        pos_err = np.linalg.norm(xf_nd[:3] - self.target_position_nd) * s.length_m
+        d = dyn.moon3d_derived(xf_nd[None, :], self.params)
+        uvw = np.array([d["u_nd"][0], d["v_nd"][0], d["w_nd"][0]])
+        vel_err = np.linalg.norm(uvw - self.target_uvw_nd) * s.velocity_m_s
+        alt = d["radius_nd"][0] * s.length_m - self.scenario.body.radius_m
+        return {"position_m": float(pos_err), "velocity_m_s": float(vel_err),
+                "altitude_m": float(alt - self.scenario.target.altitude_m)}
+
+
+def piecewise_linear_control(breaks_nd: np.ndarray, control_nodes_rad: np.ndarray,
+                             throttle: float = 1.0) -> PiecewisePolynomial:
+    """(α, β) linear between nodes plus a constant throttle, as a batch-1 PiecewisePolynomial.
+
+    Parameters
+    ----------
+    breaks_nd : ndarray, shape (n_nodes,)
+    control_nodes_rad : ndarray, shape (n_nodes, 2)
+    """
+    b = np.asarray(breaks_nd, dtype=float)
+    u = np.asarray(control_nodes_rad, dtype=float)
+    if b.ndim != 1 or u.shape != (len(b), 2):
+        raise ValueError(f"breaks shape {b.shape} and control nodes shape {u.shape} do not "
+                         "match; expected (n,) and (n, 2)")
+    h = np.diff(b)
+    if np.any(h <= 0):
+        raise ValueError("control node times must be strictly increasing")
+    n_seg = len(b) - 1
+    coefs = np.zeros((1, n_seg, 3, 2))
+    coefs[0, :, :2, 0] = u[:-1]
+    coefs[0, :, :2, 1] = (u[1:] - u[:-1]) / h[:, None]
+    coefs[0, :, 2, 0] = throttle
+    return PiecewisePolynomial(b[None, :], coefs)
