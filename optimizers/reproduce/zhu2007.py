@@ -118,7 +118,8 @@ def _fmt(v, nd=4):
     return f"{v:.{nd}f}"
 
 
-def _plots(out_dir: str, problem, runs, best_i, pontryagin_sol) -> list[str]:
+def _plots(out_dir: str, problem, runs, best_i, pontryagin_sol, units: str = "normalised"
+           ) -> list[str]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -156,9 +157,16 @@ def _plots(out_dir: str, problem, runs, best_i, pontryagin_sol) -> list[str]:
     for i, r in enumerate(runs):
         ax.plot(np.arange(1, len(r.history) + 1), r.history, lw=1.5 if i == best_i else 0.7,
                 alpha=1.0 if i == best_i else 0.5)
+    if pontryagin_sol is not None:
+        m_opt = problem.scenario.vehicle.mass_kg - pontryagin_sol.fuel_kg
+        if units == "normalised":
+            m_opt /= problem.scenario.vehicle.mass_kg
+        ax.axhline(m_opt, color="k", ls="--", lw=0.8, label="optimum (Pontryagin)")
+        ax.legend()
     ax.set_xlabel("generation T")
     ax.set_ylabel("best penalised fitness f (eq. 11)")
-    ax.set_ylim(max(min(np.min(r.history[-len(r.history) // 2:]) for r in runs), -1.0), None)
+    lowest = min(np.min(r.history[-len(r.history) // 2:]) for r in runs)
+    ax.set_ylim(max(lowest, -1.0 if units == "normalised" else -600.0), None)
     ax.grid(True, alpha=0.3)
     ax.set_title("[000] fig. 7 — maximum fitness against generation")
     fig.tight_layout()
@@ -221,8 +229,13 @@ def main(argv: list[str] | None = None) -> int:
     speed = np.array([r.terminal_errors["speed_m_s"] for r in runs])
     rf = np.array([r.terminal_errors["radius_m"] for r in runs]) + scenario.target.radius_m
     wall = np.array([r.wall_s for r in runs])
-    pool = np.flatnonzero(conv) if conv.any() else np.arange(n_runs)
-    best_i = int(pool[np.argmin(fuel[pool])])
+    # best run: least fuel among the converged runs (the paper's best run is converged);
+    # if none converged, the run with the best final penalised fitness (eq. 11)
+    if conv.any():
+        pool = np.flatnonzero(conv)
+        best_i = int(pool[np.argmin(fuel[pool])])
+    else:
+        best_i = int(np.argmax([r.extra["fitness"] for r in runs]))
     measured = {
         "n_runs": n_runs,
         "n_generations": n_gen,
@@ -295,7 +308,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(f"\nPontryagin: {pmsg}")
     if not args.no_plots:
-        paths = _plots(args.out, problem, runs, best_i, sol)
+        paths = _plots(args.out, problem, runs, best_i, sol, args.fitness_units)
         measured["plots"] = paths
         print(f"plots: {', '.join(paths)}")
     if args.json:
