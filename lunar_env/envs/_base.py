@@ -9,6 +9,7 @@ arithmetic.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import gymnasium as gym
@@ -18,6 +19,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from .. import integrators as integ
 from ._core import LanderBatch
 
 __all__ = ["LanderEnv", "LanderVectorEnv", "validate_actions"]
@@ -98,21 +100,53 @@ class LanderEnv(gym.Env):
     def step(self, action):
         if self._done:
             raise RuntimeError("the episode has ended (or reset() was never called); call reset()")
-        a = validate_actions(action, self._act_shape)
-        controls = self._task.controls_from_actions(a[None])
-        out = self._batch.step(controls)
+        task = self._task
         b = self._batch
-        obs = self._task.observation(b.y, b.t_nd * self._task.time_ref_s)[0]
-        terminated = bool(out["terminated"][0])
-        truncated = bool(out["truncated"][0])
-        self._done = terminated or truncated
-        info = self._info(float(out["touchdown_speed_m_s"][0]), float(out["miss_distance_m"][0]),
-                          bool(out["is_success"][0]))
+        if (type(action) is np.ndarray and action.shape == self._act_shape
+                and action.dtype.kind == "f"):
+            a = action.tolist()  # Python floats: the cheapest route for one lander
+            if not all(map(math.isfinite, a)):
+                validate_actions(action, self._act_shape)  # raises with the full message
+        else:
+            a = validate_actions(action, self._act_shape).tolist()
+        controls = task.control_one(a)
+        # what LanderBatch._powered does, on scalars
+        t0 = b.t_nd
+        b._breaks[0, 0] = t0[0]
+        b._breaks[0, 1] = t0[0] + task.dt_nd
+        b._coefs[0, 0, :, 0] = controls
+        powered = integ.integrate_prepared(
+            task.model, b.y, t0, b._h, task.substeps, b._breaks, b._coefs, task.params_array,
+            task.dry_mass_nd, b._r_stop, True, False)
+        y_end, t_end, status, t_burn = powered
+        t_s = float(t_end[0]) * task.time_ref_s
+        if (status[0] == 0 and t_burn[0] != t_burn[0]
+                and t_s < task.time_limit_s - 1e-9 * task.dt_s):
+            # fast path (every step but the last): no event, engine still on, no time limit
+            m_before = float(b.y[0, -1])
+            b.y = y_end
+            b.t_nd = t_end
+            row = y_end[0].tolist()
+            reward = (row[-1] - m_before) * task.mass_ref_kg / task.propellant_ref_kg
+            obs = task.observation_one(row, t_s)
+            terminated = truncated = False
+            info = {"fuel_used_kg": (float(b.m_start_nd[0]) - row[-1]) * task.mass_ref_kg,
+                    "is_success": False, "altitude_m": task.altitude_one(row), "time_s": t_s}
+        else:
+            controls = np.asarray(controls, dtype=np.float64)[None]
+            out = b.step(controls, powered=powered)
+            obs = task.observation(b.y, b.t_nd * task.time_ref_s)[0]
+            reward = float(out["reward"][0])
+            terminated = bool(out["terminated"][0])
+            truncated = bool(out["truncated"][0])
+            self._done = terminated or truncated
+            info = self._info(float(out["touchdown_speed_m_s"][0]),
+                              float(out["miss_distance_m"][0]), bool(out["is_success"][0]))
         if self.render_mode:
-            self._history.append((b.y[0].copy(), controls[0].copy()))
+            self._history.append((b.y[0].copy(), np.array(controls, dtype=np.float64).ravel()))
             if self.render_mode == "human":
                 self.render()
-        return obs, float(out["reward"][0]), terminated, truncated, info
+        return obs, reward, terminated, truncated, info
 
     def _info(self, touchdown_speed: float, miss: float, success: bool) -> dict:
         b = self._batch

@@ -35,7 +35,10 @@ __all__ = ["LanderBatch", "landing_penalty", "SPEED_SCALE_M_S", "MISS_SCALE_M"]
 SPEED_SCALE_M_S = 1.0
 MISS_SCALE_M = 100.0
 
-_PARALLEL_MIN_BATCH = integ._PARALLEL_MIN_BATCH
+#: Batch size from which env steps use the parallel kernel by default. An env step is only
+#: ``substeps`` RK4 steps per lander (~1 µs), so thread start-up dominates below several
+#: thousand landers (measured on a loaded 2-core machine: serial 7 ms vs parallel 58 ms at 4096).
+PARALLEL_MIN_BATCH = 16384
 _MAX_RESUMES = 8
 
 
@@ -67,7 +70,7 @@ class LanderBatch:
         Batch size.
     """
 
-    def __init__(self, task, n: int) -> None:
+    def __init__(self, task, n: int, parallel: bool | None = None) -> None:
         self.task = task
         self.n = int(n)
         nx = task.model.n_state
@@ -80,7 +83,8 @@ class LanderBatch:
         self._coefs = np.zeros((self.n, 1, nu, 1))
         self._h = np.full(self.n, task.h_nd)
         self._r_stop = np.full(self.n, task.r_stop_nd)
-        self._parallel = self.n >= _PARALLEL_MIN_BATCH and numba.config.NUMBA_NUM_THREADS > 1
+        self._parallel = (self.n >= PARALLEL_MIN_BATCH if parallel is None else bool(parallel)) \
+            and numba.config.NUMBA_NUM_THREADS > 1
 
     # -- state ----------------------------------------------------------------------------------
     def set_state(self, i, y_nd: np.ndarray) -> None:
@@ -103,7 +107,7 @@ class LanderBatch:
             coefs = np.empty((k, 1, controls.shape[1], 1))
             h = np.full(k, task.h_nd)
             rs = np.full(k, task.r_stop_nd)
-            parallel = k >= _PARALLEL_MIN_BATCH and numba.config.NUMBA_NUM_THREADS > 1
+            parallel = self._parallel and k >= integ._PARALLEL_MIN_BATCH
         breaks[:, 0] = t0
         breaks[:, 1] = t0 + task.dt_nd
         coefs[:, 0, :, 0] = controls
@@ -133,12 +137,14 @@ class LanderBatch:
             task.model, y0, t0_nd=t0, dt_nd=task.h_nd, n_steps=task.n_fall, control=ctrl,
             params=task.params, dry_mass_nd=task.dry_mass_nd,
             events=(integ.RadiusCrossing(task.r_stop_nd),),
-            parallel=k >= _PARALLEL_MIN_BATCH and numba.config.NUMBA_NUM_THREADS > 1)
+            parallel=self._parallel and k >= integ._PARALLEL_MIN_BATCH)
 
-    def step(self, controls: np.ndarray, idx: np.ndarray | None = None) -> dict:
+    def step(self, controls: np.ndarray, idx: np.ndarray | None = None,
+             powered: tuple | None = None) -> dict:
         """Advance landers ``idx`` (all if None) by one env step under ``controls`` (k, nu).
 
-        ``controls`` must already be validated and mapped to radians/throttle. Returns a dict of
+        ``controls`` must already be validated and mapped to radians/throttle; ``powered`` is the
+        result of :meth:`_powered` when a caller's fast path already computed it. Returns a dict of
         arrays of length k: ``reward``, ``terminated``, ``truncated``, ``touchdown``,
         ``touchdown_speed_m_s`` (NaN if no touchdown), ``miss_distance_m`` (NaN if not a pinpoint
         task or no touchdown), ``is_success``.
@@ -146,7 +152,8 @@ class LanderBatch:
         task = self.task
         m_before = self.y[:, -1] if idx is None else self.y[idx, -1]
         t_step_end = (self.t_nd if idx is None else self.t_nd[idx]) + task.dt_nd
-        y_end, t_end, status, t_burn = self._powered(idx, controls)
+        y_end, t_end, status, t_burn = powered if powered is not None else \
+            self._powered(idx, controls)
         burnt = ~np.isnan(t_burn)
         # A speed minimum above the cut-off speed is not an engine cut-off (the cut-off logic is
         # armed only in the terminal phase): keep burning to the end of the step.

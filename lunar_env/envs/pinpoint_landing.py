@@ -112,6 +112,10 @@ class _PinpointTask:
         self.obs_low = np.array([0.0, -3.0, -3.0, -3.0, -20.0, -2.0, -20.0, 0.0, 0.0])
         self.obs_high = np.array([20.0, 3.0, 3.0, 3.0, 20.0, 2.0, 20.0, 1.5, 2.0])
         self.observation_space = box(self.obs_low, self.obs_high)
+        self._obs_low_list = self.obs_low.tolist()
+        self._obs_high_list = self.obs_high.tolist()
+        self._normal_list = [float(c) for c in self.plane_normal]
+        self._target_list = self.target_nd.tolist()
 
     # -- mapping --------------------------------------------------------------------------------
     def controls_from_actions(self, a: np.ndarray) -> np.ndarray:
@@ -120,6 +124,42 @@ class _PinpointTask:
                                               self.scenario.beta_bounds_rad)
         u[:, 2] = 0.5 * (np.clip(a[:, 2], -1.0, 1.0) + 1.0) if self.throttle_channel else 1.0
         return u
+
+    def control_one(self, a: list) -> tuple:
+        """(α, β, throttle) of one action given as a list of floats (as the batch map)."""
+        lo_a, hi_a = self.scenario.alpha_bounds_rad
+        lo_b, hi_b = self.scenario.beta_bounds_rad
+        alpha = lo_a + 0.5 * (min(max(a[0], -1.0), 1.0) + 1.0) * (hi_a - lo_a)
+        beta = lo_b + 0.5 * (min(max(a[1], -1.0), 1.0) + 1.0) * (hi_b - lo_b)
+        thr = 0.5 * (min(max(a[2], -1.0), 1.0) + 1.0) if self.throttle_channel else 1.0
+        return (alpha, beta, thr)
+
+    def observation_one(self, y: list, t_s: float) -> np.ndarray:
+        """:meth:`observation` of one state given as a list of floats (scalar arithmetic)."""
+        x, yy, z, vx, vy, vz, m = y
+        n = self._normal_list
+        f = [float(c) for c in dyn.orbital_frame(x, yy, z, n[0], n[1], n[2])]
+        tx, ty, tz = self._target_list
+        dx, dy, dz = tx - x, ty - yy, tz - z
+        L, V = self.length_ref_m, self.velocity_ref_m_s
+        kd = L / self.range_scale_m
+        r = math.sqrt(x * x + yy * yy + z * z)
+        raw = ((r - self.r_stop_nd) * (L / self.altitude_scale_m),
+               (dx * f[0] + dy * f[1] + dz * f[2]) * kd,
+               (dx * f[3] + dy * f[4] + dz * f[5]) * kd,
+               (dx * f[6] + dy * f[7] + dz * f[8]) * kd,
+               (vx * f[0] + vy * f[1] + vz * f[2]) * (V / (0.1 * self.speed_scale_m_s)),
+               (vx * f[3] + vy * f[4] + vz * f[5]) * (V / self.speed_scale_m_s),
+               (vx * f[6] + vy * f[7] + vz * f[8]) * (V / (0.1 * self.speed_scale_m_s)),
+               (m - self.dry_mass_nd) / self.prop_nominal_nd,
+               t_s / self.time_limit_s)
+        lo, hi = self._obs_low_list, self._obs_high_list
+        return np.array([min(max(v, lo[i]), hi[i]) for i, v in enumerate(raw)],
+                        dtype=np.float32)
+
+    def altitude_one(self, y: list) -> float:
+        return (math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) - self.surface_radius_nd) \
+            * self.length_ref_m
 
     def _frame(self, y: np.ndarray):
         n = self.plane_normal

@@ -92,6 +92,8 @@ class _PlanarTask:
         self.obs_low = np.array([0.0, -20.0, -2.0, 0.0, 0.0])
         self.obs_high = np.array([20.0, 20.0, 2.0, 1.5, 2.0])
         self.observation_space = box(self.obs_low, self.obs_high)
+        self._obs_low_list = self.obs_low.tolist()
+        self._obs_high_list = self.obs_high.tolist()
 
     model = integ.PLANAR
 
@@ -101,6 +103,28 @@ class _PlanarTask:
         u[:, 0] = thrust_angle_from_action(a[:, 0])
         u[:, 1] = 0.5 * (np.clip(a[:, 1], -1.0, 1.0) + 1.0) if self.throttle_channel else 1.0
         return u
+
+    def control_one(self, a: list) -> tuple:
+        """(φ, throttle) of one action given as a list of floats (same as the batch map)."""
+        phi = MAX_THRUST_ANGLE_RAD * min(max(a[0], -1.0), 1.0)
+        thr = 0.5 * (min(max(a[1], -1.0), 1.0) + 1.0) if self.throttle_channel else 1.0
+        return (phi, thr)
+
+    def observation_one(self, y: list, t_s: float) -> np.ndarray:
+        """:meth:`observation` of one state given as a list of floats (bit-identical)."""
+        r, vr, _, om, m = y
+        v = self.velocity_ref_m_s
+        lo, hi = self._obs_low_list, self._obs_high_list
+        raw = ((r - self.r_stop_nd) * (self.length_ref_m / self.altitude_scale_m),
+               vr * (v / (0.1 * self.speed_scale_m_s)),
+               r * om * (v / self.speed_scale_m_s),
+               (m - self.dry_mass_nd) / self.prop_nominal_nd,
+               t_s / self.time_limit_s)
+        return np.array([min(max(x, lo[i]), hi[i]) for i, x in enumerate(raw)],
+                        dtype=np.float32)
+
+    def altitude_one(self, y: list) -> float:
+        return (y[0] - self.r_stop_nd) * self.length_ref_m
 
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         v = self.velocity_ref_m_s
