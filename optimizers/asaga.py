@@ -142,10 +142,24 @@ class ASAGA:
     - *Best individual.* The result is the best of the final population under the final
       penalty weights (the recorded elite is always in it).
 
-    Observation (not a decision): in the paper's normalised units the penalised fitness is
-    O(1) (m(tf)/m0 ≈ 0.54) while T_i = 10000·0.97^(T−1) ≥ 1.1, so early on the stretching of
-    eq. (22) is flat (selection almost uniform) and the Metropolis rule accepts nearly every
-    move; only late, when σ1 = 50 makes poor children cost O(1–10), do they bite.
+    - *Units of the fitness* (``fitness_units``). Eq. (11) is written after the normalisation of
+      §2, so the default evaluates it in normalised units (m(tf)/m0, velocities / sqrt(μ/r0),
+      radius / r0). ``"si"`` evaluates the same expression in kg, m/s and m: the reading under
+      which T0 = 10000 has the size of the early penalties.
+
+    Measured behaviour (``python -m optimizers.reproduce zhu2007 [--fitness-units si]``, 10
+    runs × 300 generations, ~12 000 evaluations each): the paper's accuracy does **not**
+    reproduce. Normalised fitness: 0/10 runs converge (|dV| 0.5–2.5 m/s, final radius 5–25 km
+    high). SI fitness: 1/10 (|dV| 0.4–8 m/s, |dr| < 5 m, fuel 0.1–2.2 kg above the optimum).
+    Why, as measured (``extra["history_anneal_acceptance"]``): with the normalised fitness
+    (O(1), m(tf)/m0 ≈ 0.54) T_i = 10000·0.97^(T−1) ≥ 1.1 makes the Metropolis rule accept
+    97–100 % of the annealing moves (a random walk) and the stretching of eq. (22) flat
+    (selection nearly uniform); with the SI fitness acceptance falls to ~0 after generation
+    100 (greedy) but no operator makes moves fine enough: eq. (12) multiplies near-equal
+    parents by (1 − α + β), i.e. tf by up to ±r·600 s; eq. (14) moves by k ≥ 0.1 of the
+    range; eq. (20) by up to δ ≥ 0.0017 of the range in all 11 parameters at once (0.3 s of tf
+    in the last generation, worth ~1 m/s of terminal speed). With 1000–3000 generations the
+    SI variant reaches 0.03–0.6 m/s and |dr| < 0.5 m, at fuel 0.2–1.8 kg above the optimum.
     """
 
     def __init__(self, n_pop: int = 20, n_generations: int = 300, t0: float = 10000.0,
