@@ -19,6 +19,7 @@ from lunar_env.envs.soft_landing import (
 )
 
 ENV_ID = "LunarSoftLanding-v0"
+SUB = 2  # the envs' default substeps
 
 
 def test_check_env_and_both_ids():
@@ -273,8 +274,8 @@ def test_open_loop_replay_lands_where_the_integrator_predicts(optimal_cubic):
     coefs = np.zeros((1, n_env_steps, 2, 1))
     coefs[0, :, 0, 0] = thrust_angle_from_action(acts)
     coefs[0, :, 1, 0] = 1.0
-    pred = integ.integrate(integ.PLANAR, y0[None], t0_nd=0.0, dt_nd=dt / 4,
-                           n_steps=4 * n_env_steps, control=integ.PiecewisePolynomial(breaks,
+    pred = integ.integrate(integ.PLANAR, y0[None], t0_nd=0.0, dt_nd=dt / SUB,
+                           n_steps=SUB * n_env_steps, control=integ.PiecewisePolynomial(breaks,
                                                                                      coefs),
                            params=sc.params(), dry_mass_nd=0.5,
                            events=(integ.RadiusCrossing(s.length_nd(sc.surface_radius_m)),
@@ -285,7 +286,7 @@ def test_open_loop_replay_lands_where_the_integrator_predicts(optimal_cubic):
         *_, term, trunc, info = env.step(np.array([a]))
         if term or trunc:
             break
-        y_pred = pred.states[0, 4 * (k + 1)]
+        y_pred = pred.states[0, SUB * (k + 1)]
         assert abs(env.state_nd[0] - y_pred[0]) * L < 1.0
         assert abs(env.state_nd[1] - y_pred[1]) * V < 0.1
         assert abs(env.state_nd[0] * env.state_nd[3] - y_pred[0] * y_pred[3]) * V < 0.1
@@ -294,7 +295,7 @@ def test_open_loop_replay_lands_where_the_integrator_predicts(optimal_cubic):
     # there (the public integrator, throttle 0) gives the touchdown
     y_c = pred.y_end
     if pred.status[0] == integ.STATUS_SPEED_MIN:
-        fall = integ.integrate(integ.PLANAR, y_c, t0_nd=pred.t_end, dt_nd=dt / 4, n_steps=4000,
+        fall = integ.integrate(integ.PLANAR, y_c, t0_nd=pred.t_end, dt_nd=dt / SUB, n_steps=4000,
                                control=integ.PiecewisePolynomial.constant(
                                    np.zeros((1, 2)), pred.t_end, pred.t_end + 1000 * dt),
                                params=sc.params(), dry_mass_nd=0.5,

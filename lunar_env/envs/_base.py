@@ -198,12 +198,16 @@ class LanderVectorEnv(VectorEnv):
     a single env reset with ``seed=s + i`` and then auto-reset without seed would do, through any
     number of autoresets. ``options`` given to ``reset`` apply to every sub-env (``state_si`` /
     ``state_nd`` may also be an array (N, n_state)).
+
+    ``parallel``: use numba's parallel kernel (default: only from
+    :data:`~lunar_env.envs._core.PARALLEL_MIN_BATCH` landers; an env step is so little work per
+    lander that thread start-up dominates below that). Results are identical either way.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
     _task_cls: type = None
 
-    def __init__(self, num_envs: int, **task_kwargs: Any) -> None:
+    def __init__(self, num_envs: int, parallel: bool | None = None, **task_kwargs: Any) -> None:
         if int(num_envs) < 1:
             raise ValueError(f"num_envs = {num_envs!r} must be >= 1")
         task_kwargs.pop("render_mode", None)
@@ -216,7 +220,7 @@ class LanderVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.render_mode = None
-        self._batch = LanderBatch(self._task, self.num_envs)
+        self._batch = LanderBatch(self._task, self.num_envs, parallel)
         self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._act_shape = (self.num_envs, *self.single_action_space.shape)

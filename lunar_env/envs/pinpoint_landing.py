@@ -57,7 +57,7 @@ class _PinpointTask:
     model = integ.MOON3D
 
     def __init__(self, scenario: str | PinpointScenario = "peng2012", dt_s: float = 1.0,
-                 substeps: int = 4, time_limit_s: float | None = None,
+                 substeps: int = 2, time_limit_s: float | None = None,
                  throttle_channel: bool = False, success_speed_m_s: float = 5.0,
                  success_miss_m: float = 500.0, max_fall_s: float | None = None,
                  cutoff_speed_m_s: float = 20.0) -> None:
@@ -257,7 +257,7 @@ _DOC = """
     (:func:`lunar_env.dynamics.moon3d_eom`,
     central gravity, Coriolis and centrifugal terms) integrated by the compiled RK4 of
     :mod:`lunar_env.integrators`; each step holds the action for ``dt_s`` (default 1 s) over
-    ``substeps`` (default 4) RK4 steps.
+    ``substeps`` (default 2) RK4 steps.
 
     ## Action Space
 
