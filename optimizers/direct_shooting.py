@@ -22,6 +22,11 @@ Transcription details (decisions where the paper is silent):
   node values (linear interpolation keeps the whole history inside them); the fuel budget and
   the other state bounds act on the final state.
 - IPOPT through CasADi with exact derivatives replaces the paper's SQP.
+- ``form="lifted"`` keeps the node states as extra variables with continuity constraints
+  (multiple-shooting layout of the *same* discretised problem: eliminating the node states gives
+  back the single-shooting NLP and the same optimum). It starts from the forward simulation of
+  the guess, i.e. the very trajectory single shooting starts from; its sparse exact Hessian
+  makes finer RK4 grids cheap. The paper's method, and the default, is ``form="single"``.
 """
 
 from __future__ import annotations
@@ -133,7 +138,11 @@ class DirectShooting:
 
     def __init__(self, fractions: np.ndarray | None = None, *, n_rk4_per_segment: int = 2,
                  tol: float = 1e-10, max_iter: int = 300, max_wall_s: float | None = None,
-                 verbose: bool = False) -> None:
+                 verbose: bool = False, form: str = "single") -> None:
+        if form not in ("single", "lifted"):
+            raise ValueError(f"form = {form!r}; allowed: 'single' (the paper's direct "
+                             "shooting) or 'lifted' (the same NLP with node states kept)")
+        self.form = form
         f = gauss_segment_fractions(6, 5) if fractions is None else np.asarray(fractions, float)
         if f.ndim != 1 or len(f) < 2 or f[0] != 0.0 or f[-1] != 1.0 or np.any(np.diff(f) <= 0):
             raise ValueError(f"fractions = {fractions!r} must increase strictly from 0 to 1")
@@ -154,7 +163,7 @@ class DirectShooting:
 
     def __repr__(self) -> str:
         return (f"DirectShooting(n_segments={self.n_segments}, "
-                f"n_rk4_per_segment={self.n_rk4_per_segment})")
+                f"n_rk4_per_segment={self.n_rk4_per_segment}, form={self.form!r})")
 
     def _build(self, ocp) -> dict:
         key = id(ocp)
@@ -180,18 +189,36 @@ class DirectShooting:
         step = ca.Function("rk4_step", [xs, ua, slope, tau0, h],
                            [xs + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
         m = self.n_rk4_per_segment
+        # one segment: m RK4 steps with the control linear from ua to ub over hseg
+        ub = ca.SX.sym("ub", nu)
+        hseg = ca.SX.sym("hseg")
+        xe = xs
+        for j in range(m):
+            xe = step(xe, ua, (ub - ua) / hseg, j * hseg / m, hseg / m)
+        segment = ca.Function("segment", [xs, ua, ub, hseg], [xe])
+        lifted = self.form == "lifted"
+        if lifted:
+            Xs = sym.sym("Xs", nx, n_nodes - 1)  # node states 1..n (lifted form)
         x = x0
         nodes = [x]
+        cont = []
         for i in range(n_nodes - 1):
             seg = tf * float(self.fractions[i + 1] - self.fractions[i])
-            sl = (U[:, i + 1] - U[:, i]) / seg
-            hh = seg / m
-            for j in range(m):
-                x = step(x, U[:, i], sl, j * hh, hh)
+            x_end = segment(x, U[:, i], U[:, i + 1], seg)
+            if lifted:
+                cont.append(Xs[:, i] - x_end)
+                x = Xs[:, i]
+            else:
+                x = x_end
             nodes.append(x)
         Xn = ca.horzcat(*nodes)
         term = ocp.terminal_residual(x)
         parts, lo, hi = [term], [np.zeros(term.shape[0])], [np.zeros(term.shape[0])]
+        if lifted:
+            c = ca.vertcat(*cont)
+            parts.append(c)
+            lo.append(np.zeros(c.shape[0]))
+            hi.append(np.zeros(c.shape[0]))
         for i in range(1, n_nodes):
             pc = ocp.path_constraints(nodes[i], U[:, i])
             if pc is not None:
@@ -204,15 +231,22 @@ class DirectShooting:
         hi.append(shi)
         g = ca.vertcat(*parts)
         z = ca.vertcat(ca.vec(U), tf)
+        if lifted:
+            z = ca.vertcat(z, ca.vec(Xs))
         opts = ipopt_options(verbose=self.verbose, tol=self.tol, max_iter=self.max_iter,
                              max_wall_s=self.max_wall_s)
         solver = ca.nlpsol("shooting", "ipopt",
                            {"x": z, "p": x0, "f": ocp.objective(x, tf), "g": g}, opts)
         lbz = np.concatenate([np.tile(ocp.control_lower, n_nodes), [ocp.tf_bounds_nd[0]]])
         ubz = np.concatenate([np.tile(ocp.control_upper, n_nodes), [ocp.tf_bounds_nd[1]]])
+        if lifted:
+            slo, shi = ocp.state_bounds()
+            lbz = np.concatenate([lbz, np.tile(slo, n_nodes - 1)])
+            ubz = np.concatenate([ubz, np.tile(shi, n_nodes - 1)])
         built = dict(ocp=ocp, solver=solver, lbz=lbz, ubz=ubz, lbg=np.concatenate(lo),
                      ubg=np.concatenate(hi), nodes=ca.Function("nodes", [z, x0], [Xn]),
-                     n_term=term.shape[0], nu=nu, nx=nx)
+                     n_term=term.shape[0], nu=nu, nx=nx, segment=segment,
+                     n_ctrl_vars=nu * n_nodes + 1)
         self._cache[key] = built
         return built
 
@@ -243,14 +277,28 @@ class DirectShooting:
         if not np.isfinite(tf_nd):
             raise ValueError(f"tf_nd = {tf_nd!r} must be finite")
         x0 = np.asarray(ocp.initial_state if initial_state is None else initial_state, float)
-        z = np.clip(np.concatenate([u.ravel(), [float(tf_nd)]]), b["lbz"], b["ubz"])
+        z = np.concatenate([u.ravel(), [float(tf_nd)]])
+        if self.form == "lifted":
+            # node states of the guess by forward simulation: the lifted NLP starts from the
+            # very trajectory single shooting would start from
+            zc = np.clip(z, b["lbz"][:len(z)], b["ubz"][:len(z)])
+            uu = zc[:-1].reshape(-1, nu)
+            xk = x0
+            xs_guess = []
+            for i in range(len(self.fractions) - 1):
+                h = zc[-1] * (self.fractions[i + 1] - self.fractions[i])
+                xk = np.asarray(b["segment"](xk, uu[i], uu[i + 1], h)).ravel()
+                xs_guess.append(xk)
+            z = np.concatenate([zc, np.concatenate(xs_guess)])
+        z = np.clip(z, b["lbz"], b["ubz"])
         sol = b["solver"](x0=z, p=x0, lbx=b["lbz"], ubx=b["ubz"], lbg=b["lbg"], ubg=b["ubg"])
         st = b["solver"].stats()
         z = np.asarray(sol["x"]).ravel()
-        tf = float(z[-1])
+        nc = b["n_ctrl_vars"]
+        tf = float(z[nc - 1])
         states = np.asarray(b["nodes"](z, x0)).T
         return ShootingSolution(
-            tf_nd=tf, t_nodes_nd=tf * self.fractions, controls=z[:-1].reshape(-1, nu),
+            tf_nd=tf, t_nodes_nd=tf * self.fractions, controls=z[:nc - 1].reshape(-1, nu),
             states=states, success=bool(st["success"]), message=str(st["return_status"]),
             iterations=int(st["iter_count"]), wall_s=time.perf_counter() - t_start,
             n_rk4_per_segment=self.n_rk4_per_segment, x=z)

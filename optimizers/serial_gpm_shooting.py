@@ -158,8 +158,14 @@ class SerialSolver:
     k_per_interval : int
         K shooting segments between adjacent Gauss points ([001]: 5).
     n_rk4_per_segment : int
-        RK4 steps per shooting segment (not stated in [001]; 1 keeps the terminal error of the
-        RK4 transcription against an adaptive DOP853 replay below 1 m, see the tests).
+        RK4 steps per shooting segment (not stated in [001]). With 1 the control, replayed by an
+        adaptive DOP853 integrator, misses the target by ~0.4 m (the transcription's RK4
+        error); 4 brings that to ~2 mm (what an open-loop replay in the environment needs to
+        reach the 2 km gate at < 0.5 m/s).
+    form : {"single", "lifted"}
+        "single" is the paper's direct shooting (controls and tf only). "lifted" keeps the node
+        states as variables with continuity constraints: the same discretised problem and
+        optimum, a sparse NLP (cheaper exact Hessians, used for the finer RK4 grids).
     tol : float
         IPOPT tolerance (normalised).
     max_iter : int
@@ -167,21 +173,23 @@ class SerialSolver:
     """
 
     def __init__(self, problem="peng2012", *, n_gauss: int = 6, k_per_interval: int = 5,
-                 n_rk4_per_segment: int = 1, tol: float = 1e-10, max_iter: int = 300,
-                 verbose: bool = False) -> None:
+                 n_rk4_per_segment: int = 1, form: str = "single", tol: float = 1e-10,
+                 max_iter: int = 300, verbose: bool = False) -> None:
         self.ocp = _as_ocp(problem)
         self.n_gauss = int(n_gauss)
         self.gpm = GaussPseudospectral(self.n_gauss, tol=tol, max_iter=max_iter,
                                        verbose=verbose)
         self.shooting = DirectShooting(gauss_segment_fractions(self.n_gauss, k_per_interval),
                                        n_rk4_per_segment=n_rk4_per_segment, tol=tol,
-                                       max_iter=max_iter, verbose=verbose)
+                                       max_iter=max_iter, verbose=verbose, form=form)
 
     def build(self) -> float:
         """Build (or fetch) both NLPs; returns the seconds spent."""
         t0 = time.perf_counter()
         self.gpm._build(self.ocp)
         self.shooting._build(self.ocp)
+        # load (or compile) the numba RK4 kernel used for guesses and replays
+        guess_to_gpm(self.ocp, nominal_guess(self.ocp, self.n_gauss), n_steps=2)
         return time.perf_counter() - t0
 
     def solve(self, guess: ControlGuess | None = None, *,
