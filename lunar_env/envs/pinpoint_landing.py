@@ -236,10 +236,16 @@ class _PinpointTask:
 
     # -- rendering ------------------------------------------------------------------------------
     def track(self, ys: np.ndarray) -> dict:
-        """Ground track (longitude, latitude in degrees), altitude (km), target (deg)."""
+        """Ground track (longitude, latitude in degrees), altitude (km), downrange (km, great
+        circle from the first state), target (deg, and its downrange)."""
         t = self.scenario.target
         r = np.sqrt(np.sum(ys[:, 0:3] ** 2, axis=1))
-        return {"longitude_deg": np.degrees(np.arctan2(ys[:, 1], ys[:, 0])),
+        up = ys[:, 0:3] / r[:, None]
+        rl_km = self.surface_radius_nd * self.length_ref_m / 1e3
+        tgt = self.target_nd / np.linalg.norm(self.target_nd)
+        return {"downrange_km": rl_km * np.arccos(np.clip(up @ up[0], -1.0, 1.0)),
+                "target_downrange_km": rl_km * float(np.arccos(np.clip(tgt @ up[0], -1, 1))),
+                "longitude_deg": np.degrees(np.arctan2(ys[:, 1], ys[:, 0])),
                 "latitude_deg": np.degrees(np.arcsin(ys[:, 2] / r)),
                 "altitude_km": self.altitude_m(ys) / 1e3,
                 "target_deg": (math.degrees(t.longitude_rad), math.degrees(t.latitude_rad)),

@@ -9,6 +9,15 @@ import numpy as np
 __all__ = ["Renderer"]
 
 
+def _arrow(ax, x: float, y: float, dx: float, dy: float, length_pt: float, label: str) -> None:
+    """Arrow from data point (x, y) along the screen direction (dx, dy), ``length_pt`` long."""
+    n = math.hypot(dx, dy) or 1.0
+    ax.annotate("", xy=(x + 0.0, y + 0.0), xytext=(length_pt * dx / n, length_pt * dy / n),
+                textcoords="offset points", annotation_clip=False,
+                arrowprops=dict(arrowstyle="<|-", color="tab:red", lw=2.0))
+    ax.plot([], [], color="tab:red", lw=2.0, label=label)
+
+
 class Renderer:
     """Draws an episode history ``[(state_nd, control or None), ...]`` of a task.
 
@@ -52,13 +61,10 @@ class Renderer:
         ax.axhline(0.0, color="0.4", lw=1.0)
         ax.plot(x[-1], h[-1], "o", color="k", ms=6, label="lander")
         if u is not None:
-            # thrust direction in (downrange, up): cos φ opposes the motion (brakes)
+            # thrust direction in (downrange, up): cos φ opposes the motion (brakes); drawn at
+            # its true angle on screen, length ∝ throttle
             phi, thr = float(u[0]), float(u[-1])
-            span = max(float(np.ptp(x)), float(np.ptp(h)), 1.0)
-            L = 0.08 * span * thr
-            ax.annotate("", xy=(x[-1] - L * math.cos(phi), h[-1] + L * math.sin(phi)),
-                        xytext=(x[-1], h[-1]), arrowprops=dict(color="tab:red", width=1.5,
-                                                               headwidth=6))
+            _arrow(ax, x[-1], h[-1], -math.cos(phi), math.sin(phi), 45.0 * thr, "thrust")
         ax.set_xlabel("downrange (km)")
         ax.set_ylabel("altitude (km)")
         ax.set_title(f"{self.task.scenario.name}  t = {len(ys) - 1} steps, "
@@ -78,27 +84,25 @@ class Renderer:
             if len(lon) > 1:
                 head = math.atan2(lat[-1] - lat[-2], lon[-1] - lon[-2])
                 ang = head + float(u[1])
-                L = 0.05 * max(float(np.ptp(lon)), float(np.ptp(lat)), 0.1)
-                ax1.annotate("", xy=(lon[-1] + L * math.cos(ang), lat[-1] + L * math.sin(ang)),
-                             xytext=(lon[-1], lat[-1]),
-                             arrowprops=dict(color="tab:red", width=1.2, headwidth=5))
+                _arrow(ax1, lon[-1], lat[-1], math.cos(ang), math.sin(ang),
+                       35.0 * math.cos(float(u[0])) * float(u[-1]), "thrust")
         ax1.set_xlabel("longitude (deg)")
         ax1.set_ylabel("latitude (deg)")
         ax1.set_title("ground track")
         ax1.legend(fontsize=8)
         ax2 = self.fig.add_subplot(1, 2, 2)
-        steps = np.arange(len(ys)) * self.task.dt_s
-        ax2.plot(steps, tr["altitude_km"], color="tab:blue")
+        x = tr["downrange_km"]
+        ax2.plot(x, tr["altitude_km"], color="tab:blue")
+        ax2.plot(x[-1], tr["altitude_km"][-1], "o", color="k")
         ax2.axhline(tr["target_altitude_km"], color="tab:red", lw=1.0, ls="--", label="gate")
-        if u is not None:
-            alpha = float(u[0])
-            ax2.annotate("", xy=(steps[-1] + 20.0 * math.cos(alpha),
-                                 tr["altitude_km"][-1] + 1.0 * math.sin(alpha)),
-                         xytext=(steps[-1], tr["altitude_km"][-1]),
-                         arrowprops=dict(color="tab:red", width=1.2, headwidth=5))
-        ax2.set_xlabel("time (s)")
+        ax2.axvline(tr["target_downrange_km"], color="tab:red", lw=1.0, ls=":", label="target")
+        if u is not None:  # thrust in the (along-track, up) plane: (cos α cos β, sin α)
+            alpha, beta = float(u[0]), float(u[1])
+            _arrow(ax2, x[-1], tr["altitude_km"][-1], math.cos(alpha) * math.cos(beta),
+                   math.sin(alpha), 35.0 * float(u[-1]), "thrust")
+        ax2.set_xlabel("downrange (km)")
         ax2.set_ylabel("altitude (km)")
-        ax2.set_title("altitude, thrust elevation")
+        ax2.set_title("altitude")
         ax2.legend(fontsize=8)
         self.fig.tight_layout()
 
