@@ -334,3 +334,21 @@ def test_other_planar_scenario_and_bad_scenario():
     assert info["fuel_used_kg"] == 0.0 and r == 0.0
     with pytest.raises(ValueError, match="not planar"):
         gym.make(ENV_ID, scenario="peng2012")
+
+
+def test_pontryagin_optimum_replayed_scores_at_least_as_well(optimal_cubic):
+    """Second, independent reference: the indirect (Pontryagin) optimum of
+    :mod:`optimizers.pontryagin`, sampled at the step midpoints, lands softly and its return is
+    at least that of the cubic law (it is the better optimum)."""
+    from optimizers.pontryagin import solve_planar_min_fuel
+
+    c, tf_s, _ = optimal_cubic
+    env = gym.make(ENV_ID).unwrapped
+    sol = solve_planar_min_fuel(env.scenario)
+    r_pmp, term, info = _run(
+        env, lambda k, o: action_from_thrust_angle(sol.thrust_angle_at(k + 0.5)),
+        {"nominal": True})
+    r_cubic, *_ = _run(env, lambda k, o: action_from_thrust_angle(_phi_of(c, tf_s, k + 0.5)),
+                       {"nominal": True})
+    assert term and info["is_success"]
+    assert r_pmp >= r_cubic - 1e-3
