@@ -322,9 +322,12 @@ _DOC = """
     2. Truncation: time >= ``time_limit_s`` (default 1200 s = 1.5 × 800 s) or a free fall that
        does not reach the gate within ``max_fall_s``.
 
-    ``info``: ``fuel_used_kg``, ``touchdown_speed_m_s`` (speed at the gate; NaN before),
-    ``miss_distance_m`` (NaN before the end), ``is_success``, ``altitude_m`` (above R_L),
-    ``time_s``.
+    [001]'s path constraint |u|, |w| <= 110 m/s is an optimiser constraint, not enforced here;
+    its propellant bound (300 kg) is the vehicle's: the burn ends at the dry mass.
+
+    ``info``: ``fuel_used_kg``, ``is_success``, ``altitude_m`` (above R_L), ``time_s``; after
+    the gate crossing ``touchdown_speed_m_s`` (speed at the gate) and, at the end of the episode,
+    ``miss_distance_m``.
 
     ## Arguments
 

@@ -246,8 +246,8 @@ _DOC = """
        bound, 1050 s for ``zhu2007``), or a free fall that does not reach the surface within
        ``max_fall_s`` (default the time limit).
 
-    ``info``: ``fuel_used_kg``, ``touchdown_speed_m_s`` (NaN before touchdown), ``is_success``,
-    ``altitude_m``, ``time_s``.
+    ``info``: ``fuel_used_kg``, ``is_success``, ``altitude_m``, ``time_s``, and after touchdown
+    ``touchdown_speed_m_s`` (absent before: infos carry no NaN).
 
     ## Arguments
 
