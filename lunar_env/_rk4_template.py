@@ -23,24 +23,6 @@ EVENT_FUEL = 3
 _ROOT_ITERATIONS = 80
 
 
-def control_at(breaks, coefs, i, k, t, burn):
-    """Control tuple of trajectory i at time t (piecewise polynomial; segment search from k)."""
-    n_seg = coefs.shape[1]
-    order = coefs.shape[3]
-    while k < n_seg - 1 and t >= breaks[i, k + 1]:
-        k += 1
-    tau = t - breaks[i, k]
-    u = UZERO
-    for j in range(len(u)):
-        acc = coefs[i, k, j, order - 1]
-        for q in range(order - 2, -1, -1):
-            acc = acc * tau + coefs[i, k, j, q]
-        u = tuple_setitem(u, j, acc)
-    last = len(u) - 1
-    u = tuple_setitem(u, last, u[last] * burn)
-    return u
-
-
 def control_in(breaks, coefs, i, k, t, burn):
     """Control tuple of trajectory i at time t evaluated on segment k (no segment search).
 

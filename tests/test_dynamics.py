@@ -168,7 +168,8 @@ def test_casadi_evaluates_the_same_equations():
     np.testing.assert_allclose(J, fd, atol=1e-7)
 
 
-def test_rk4_matches_reference_integrator():
+def _cubic_descent_and_reference():
+    """zhu2007 start, a cubic thrust-angle law over 600 s, and the DOP853 reference end state."""
     sc = get_scenario("zhu2007")
     p = sc.params()
     tf = sc.scaling().time_nd(600.0)
@@ -178,26 +179,23 @@ def test_rk4_matches_reference_integrator():
     ctrl = PiecewisePolynomial.polynomial(coef, 0, tf)
     y0 = sc.state_nd()
     ref = integrate_reference(PLANAR, y0, (0.0, tf), lambda t: ctrl(np.array([[t]]))[0, 0], p)
+    return y0, ctrl, p, tf, ref.y[:, -1]
+
+
+def test_rk4_matches_reference_integrator():
+    y0, ctrl, p, tf, y_ref = _cubic_descent_and_reference()
     res = integrate(PLANAR, y0[None], t0_nd=0, dt_nd=tf / 1200, n_steps=1200, control=ctrl,
                     params=p)
-    np.testing.assert_allclose(res.y_end[0], ref.y[:, -1], rtol=0, atol=1e-11)
+    np.testing.assert_allclose(res.y_end[0], y_ref, rtol=0, atol=1e-11)
 
 
 def test_rk4_observed_order_is_four():
-    sc = get_scenario("zhu2007")
-    p = sc.params()
-    tf = sc.scaling().time_nd(600.0)
-    coef = np.zeros((1, 2, 4))
-    coef[0, 0] = [0.05, 0.3, 0.8, -0.2]
-    coef[0, 1, 0] = 1.0
-    ctrl = PiecewisePolynomial.polynomial(coef, 0, tf)
-    y0 = sc.state_nd()
-    ref = integrate_reference(PLANAR, y0, (0.0, tf), lambda t: ctrl(np.array([[t]]))[0, 0], p)
+    y0, ctrl, p, tf, y_ref = _cubic_descent_and_reference()
     errs = []
     for n in (10, 20, 40, 80):
         res = integrate(PLANAR, y0[None], t0_nd=0, dt_nd=tf / n, n_steps=n, control=ctrl,
                         params=p)
-        errs.append(np.max(np.abs(res.y_end[0] - ref.y[:, -1])))
+        errs.append(np.max(np.abs(res.y_end[0] - y_ref)))
     orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
     assert np.all(np.abs(orders - 4.0) < 0.2), orders
 
