@@ -106,10 +106,11 @@ def main(argv: list[str] | None = None) -> int:
         record(f"native vector env N={n}",
                _time_vector(venv, rng.uniform(-1, 1, (20, n, dim)).astype(np.float32), min_s))
     n = sizes[-1]
-    venv = gym.make_vec(args.env, num_envs=n, vectorization_mode="vector_entry_point",
-                        parallel=True)
-    record(f"native vector env N={n}, parallel kernel",
-           _time_vector(venv, rng.uniform(-1, 1, (20, n, dim)).astype(np.float32), min_s))
+    for label, kw in ((f"native vector env N={n}, parallel kernel", dict(parallel=True)),
+                      (f"native vector env N={n}, substeps=1", dict(substeps=1))):
+        venv = gym.make_vec(args.env, num_envs=n, vectorization_mode="vector_entry_point", **kw)
+        record(label, _time_vector(venv, rng.uniform(-1, 1, (20, n, dim)).astype(np.float32),
+                                   min_s))
 
     print()
     print(f"{'configuration':<50s} {'env-steps/s':>14s} {'x peer':>9s} {'µs/env-step':>12s}")
