@@ -147,6 +147,13 @@ class NodePolynomial:
         PiecewisePolynomial
             One segment [t0, tf] per candidate, order ``degree + 1``.
         """
+        breaks, coefs = self.control_arrays(node_values, t0, tf, throttle=throttle)
+        return PiecewisePolynomial(breaks, coefs)
+
+    def control_arrays(self, node_values: np.ndarray, t0, tf, *,
+                       throttle: float | np.ndarray = 1.0) -> tuple[np.ndarray, np.ndarray]:
+        """``(breaks, coefs)`` of :meth:`control` as C-contiguous arrays, shapes (batch, 2) and
+        (batch, 1, 2, degree + 1), for :func:`lunar_env.integrators.integrate_prepared`."""
         c = self.time_coefficients(node_values, t0, tf)
         batch = c.shape[0]
         coefs = np.zeros((batch, 1, 2, self.order))
@@ -155,4 +162,4 @@ class NodePolynomial:
         breaks = np.empty((batch, 2))
         breaks[:, 0] = t0
         breaks[:, 1] = tf
-        return PiecewisePolynomial(breaks, coefs)
+        return breaks, coefs

@@ -38,10 +38,11 @@ paper's runs differ; ``tests/test_landing_problem.py`` checks it.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from lunar_env import get_scenario
-from lunar_env.integrators import PLANAR, integrate
+from lunar_env.integrators import PLANAR, integrate, integrate_prepared
 from lunar_env.scenarios import PlanarScenario
 
 from ..common.problem import Problem
@@ -51,6 +52,8 @@ from ..parameterisations import NodePolynomial
 __all__ = ["PlanarLandingProblem", "PenalisedProblem", "DEFAULT_N_STEPS"]
 
 DEFAULT_N_STEPS = 100
+# same threshold as lunar_env.integrators.integrate: threads cost more than they save below it
+_PARALLEL_MIN_BATCH = 32
 
 _OBJECTIVES = ("fuel", "final_mass")
 
@@ -78,6 +81,10 @@ class PlanarLandingProblem(Problem):
         Default: the scenario's (``(500, 700)`` for zhu2007, [000] eq. 24–25).
     velocity_scale_m_s, radius_scale_m : float
         Divisors of the equality constraints (default 1: constraints in m/s and m).
+    parallel : bool, optional
+        Force the threaded or the serial RK4 kernel in :meth:`batch_fitness` (default: threaded
+        for batches of 32 or more, as :func:`lunar_env.integrators.integrate`; on a heavily
+        shared machine the serial kernel can be faster).
 
     Raises
     ------
@@ -90,7 +97,8 @@ class PlanarLandingProblem(Problem):
                  parameterisation: NodePolynomial | None = None, n_steps: int = DEFAULT_N_STEPS,
                  objective: str = "fuel", initial_state_si=None, node_upper_deg=None,
                  node_lower_deg=None, tf_bounds_s: tuple[float, float] | None = None,
-                 velocity_scale_m_s: float = 1.0, radius_scale_m: float = 1.0) -> None:
+                 velocity_scale_m_s: float = 1.0, radius_scale_m: float = 1.0,
+                 parallel: bool | None = None) -> None:
         super().__init__()
         sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
         if getattr(sc, "model", None) != "planar":
@@ -110,6 +118,8 @@ class PlanarLandingProblem(Problem):
         self.objective = objective
         self.velocity_scale_m_s = float(velocity_scale_m_s)
         self.radius_scale_m = float(radius_scale_m)
+        self.parallel = parallel
+        self._consts: dict = {}
         self.scaling = sc.scaling()
         self.params = sc.params(self.scaling)
         if initial_state_si is None:
@@ -183,9 +193,34 @@ class PlanarLandingProblem(Problem):
         return {"radial_velocity_m_s": dvr, "tangential_velocity_m_s": dvt,
                 "speed_m_s": np.hypot(dvr, dvt), "radius_m": dr}
 
+    def _end_states(self, X: np.ndarray) -> np.ndarray:
+        """Normalised states at tf, (batch, 5): the hot path, one compiled batched RK4 call
+        (:func:`lunar_env.integrators.integrate_prepared`, the same kernel as
+        :func:`~lunar_env.integrators.integrate` without its per-call validation; the inputs
+        are built here, so they are valid by construction)."""
+        n = X.shape[0]
+        tf_nd = X[:, -1] / self.scaling.time_s
+        if not np.all(tf_nd > 0):
+            raise ValueError(f"tf must be > 0 s; got {X[:, -1][~(tf_nd > 0)][0]!r}")
+        breaks, coefs = self.parameterisation.control_arrays(
+            np.deg2rad(X[:, :-1]), 0.0, tf_nd)
+        consts = self._consts.get(n)
+        if consts is None:
+            consts = (np.ascontiguousarray(np.broadcast_to(self.y0_nd, (n, 5))), np.zeros(n),
+                      np.full(n, np.nan), self.params.as_array(),
+                      self.parallel if self.parallel is not None else
+                      (n >= _PARALLEL_MIN_BATCH and numba.config.NUMBA_NUM_THREADS > 1))
+            if len(self._consts) > 16:
+                self._consts.clear()
+            self._consts[n] = consts
+        y0, t0, r_stop, p, par = consts
+        y_end, _, _, _ = integrate_prepared(PLANAR, y0, t0, tf_nd / self.n_steps, self.n_steps,
+                                            breaks, coefs, p, self.dry_mass_nd, r_stop, False,
+                                            par)
+        return y_end
+
     def _batch_fitness(self, X: np.ndarray) -> np.ndarray:
-        prop = self.propagate(X)
-        y = prop.y_end
+        y = self._end_states(X)
         if not np.all(np.isfinite(y)):
             bad = X[~np.all(np.isfinite(y), axis=1)][0]
             raise FloatingPointError(f"integration of x = {bad!r} produced a non-finite state; "
