@@ -216,8 +216,9 @@ def _dt_s(core) -> float:
 class ExpertPolicy:
     """Closed-loop re-planning expert: re-solves the optimal control from every current state.
 
-    Wraps :class:`optimizers.pontryagin.PontryaginExpert` (planar env), called once per flying
-    lander and decision with the lander's SI state and time since the start of its episode.
+    Wraps :class:`optimizers.pontryagin.PontryaginExpert` (planar env): one expert per case, so
+    each re-plan is warm-started from that case's previous plan, called once per decision of a
+    lander still flying with its SI state and the time since the start of its episode.
     """
 
     name = "Pontryagin re-planning"
@@ -225,13 +226,14 @@ class ExpertPolicy:
     def __init__(self, scenario, **expert_kwargs) -> None:
         self.scenario = scenario
         self.expert_kwargs = expert_kwargs
-        self.expert = None
+        self.experts: list = []
         self.active: np.ndarray | None = None
 
     def reset(self, venv, case_ids: np.ndarray) -> None:
         from optimizers.pontryagin import PontryaginExpert
 
-        self.expert = PontryaginExpert(self.scenario, **self.expert_kwargs)
+        self.experts = [PontryaginExpert(self.scenario, **self.expert_kwargs)
+                        for _ in range(len(case_ids))]
         self.active = None
 
     def act(self, obs: np.ndarray, venv) -> np.ndarray:
@@ -241,7 +243,7 @@ class ExpertPolicy:
         phi = np.zeros(len(si))
         for k in range(len(si)):
             if self.active is None or self.active[k]:
-                phi[k] = float(self.expert(si[k], t_s=float(t_s[k])))
+                phi[k] = float(self.experts[k](si[k], t_s=float(t_s[k])))
         return _thrust_angle_to_action(venv, phi)
 
 
@@ -266,6 +268,16 @@ class PolicyResult:
     @property
     def us_per_decision(self) -> float:
         return 1e6 * self.policy_wall_s / max(self.n_decisions, 1)
+
+
+def _vector_info(info: dict, key: str, n: int) -> np.ndarray:
+    """``info[key]`` as float array with NaN where Gymnasium's ``info["_" + key]`` mask says the
+    value is undefined (e.g. no touchdown speed for a truncated episode)."""
+    val = np.asarray(info[key], dtype=np.float64).reshape(n)
+    mask = info.get("_" + key)
+    if mask is None:
+        return val
+    return np.where(np.asarray(mask, dtype=bool).reshape(n), val, np.nan)
 
 
 def rollout(env_id: str, policy: Policy, n: int, seed: int,
@@ -339,9 +351,9 @@ def rollout(env_id: str, policy: Policy, n: int, seed: int,
             if ended.any():
                 e = np.flatnonzero(ended)
                 success[e] = np.asarray(info["is_success"])[e]
-                speed[e] = np.asarray(info["touchdown_speed_m_s"], dtype=np.float64)[e]
+                speed[e] = _vector_info(info, "touchdown_speed_m_s", n)[e]
                 if "miss_distance_m" in info:
-                    miss[e] = np.asarray(info["miss_distance_m"], dtype=np.float64)[e]
+                    miss[e] = _vector_info(info, "miss_distance_m", n)[e]
                 fuel[e] = np.asarray(info["fuel_used_kg"], dtype=np.float64)[e]
                 if "time_s" in info:
                     t_end[e] = np.asarray(info["time_s"], dtype=np.float64)[e]

@@ -128,12 +128,16 @@ def _is_native_env(env_id: str) -> bool:
 
 
 def make_training_env(env_id: str, n_envs: int, seed: int | None,
-                      env_kwargs: dict[str, Any] | None = None):
+                      env_kwargs: dict[str, Any] | None = None,
+                      curriculum: dict[str, Any] | None = None, total_timesteps: int = 0,
+                      progress: bool = True):
     """Build the SB3 ``VecEnv`` to train on (no normalisation wrapper).
 
     Our env ids go through the natively batched vector env (:func:`agents.vec_env.
     make_sb3_vec_env`); other Gymnasium ids through SB3's ``make_vec_env`` (``DummyVecEnv``).
-    Episode statistics are recorded by ``VecMonitor`` when the adapter does not already.
+    ``curriculum`` (the YAML mapping) wraps the batch in :class:`agents.curriculum.
+    OptimalStartCurriculum` annealed over ``total_timesteps``. Episode statistics are recorded by
+    ``VecMonitor`` when the adapter does not already.
     """
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import VecMonitor
@@ -146,7 +150,15 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
         from agents.vec_env import make_sb3_vec_env
 
         venv = make_sb3_vec_env(env_id, n_envs, seed=seed, **env_kwargs)
+        if curriculum:
+            from agents.curriculum import OptimalStartCurriculum
+
+            venv = OptimalStartCurriculum(venv, total_timesteps=total_timesteps,
+                                          seed=0 if seed is None else int(seed),
+                                          progress=progress, **curriculum)
     else:
+        if curriculum:
+            raise ValueError(f"curriculum is only available for lunar_env ids, not {env_id!r}")
         venv = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
         return venv  # make_vec_env already wraps each env in Monitor
     node, monitored = venv, False
@@ -160,6 +172,16 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
     if not monitored:
         venv = VecMonitor(venv)
     return venv
+
+
+def _find_wrapper(venv, class_name: str):
+    """The first wrapper named ``class_name`` in a VecEnv wrapper chain, or None."""
+    node = venv
+    while node is not None:
+        if type(node).__name__ == class_name:
+            return node
+        node = getattr(node, "venv", None)
+    return None
 
 
 def _normalize_kwargs(normalize: Any, gamma: float | None) -> dict[str, Any] | None:
@@ -247,6 +269,9 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
             return True
 
         def _on_rollout_end(self) -> None:
+            cur = _find_wrapper(self.training_env, "OptimalStartCurriculum")
+            if cur is not None:
+                self.logger.record("curriculum/start_prob", cur.current_prob)
             for k, vals in self._acc.items():
                 if vals:
                     self.logger.record(f"episode/{k}", float(np.mean(vals)))
@@ -371,10 +396,13 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
     return hp, run
 
 
-def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False):
+def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False,
+          callbacks: list | None = None):
     """Train (or continue) one run; returns ``(model, run_dir)``.
 
-    ``hp`` are the resolved YAML hyperparameters, ``run`` the run arguments (as in ``args.yml``).
+    ``hp`` are the resolved YAML hyperparameters, ``run`` the run arguments (as in ``args.yml``),
+    ``callbacks`` extra SB3 callbacks. A ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM) raised during
+    training writes a checkpoint and propagates.
     """
     import torch
     from stable_baselines3.common.utils import set_random_seed
@@ -385,7 +413,9 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     torch.set_num_threads(max(int(run.get("torch_threads") or 1), 1))
     set_random_seed(seed)
     n_envs, n_timesteps = hp["n_envs"], hp["n_timesteps"]
-    venv = make_training_env(run["env"], n_envs, seed, hp.get("env_kwargs"))
+    venv = make_training_env(run["env"], n_envs, seed, hp.get("env_kwargs"),
+                             curriculum=hp.get("curriculum"), total_timesteps=n_timesteps,
+                             progress=not run.get("no_progress"))
     tb_dir = None if run.get("no_tensorboard") else str(run_dir / "tb")
 
     if resume:
@@ -412,6 +442,9 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                                   device=run.get("device", "cpu"), tensorboard_log=tb_dir,
                                   verbose=int(run.get("verbose", 1)), **kwargs)
 
+    curriculum = _find_wrapper(venv, "OptimalStartCurriculum")
+    if curriculum is not None:  # continue the annealing schedule where the run stopped
+        curriculum.num_timesteps = model.num_timesteps
     remaining = n_timesteps - model.num_timesteps
     save_freq = run.get("save_freq") or max(n_timesteps // 20, 1)
     ckpt_cb, info_cb = _make_callbacks(run_dir, save_freq, hp)
@@ -424,7 +457,8 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     steps0 = model.num_timesteps
     try:
         if remaining > 0:
-            model.learn(total_timesteps=remaining, callback=[ckpt_cb, info_cb],
+            model.learn(total_timesteps=remaining,
+                        callback=[ckpt_cb, info_cb, *(callbacks or [])],
                         reset_num_timesteps=not resume, tb_log_name="run",
                         progress_bar=not run.get("no_progress"))
     except KeyboardInterrupt:

@@ -31,7 +31,10 @@ Python objects are given by name and resolved from a fixed table:
   noise, as in the Zoo.
 
 Keys that are not algorithm arguments (``n_envs``, ``n_timesteps``, ``policy``, ``normalize``,
-``noise_type``, ``noise_std``, ``env_kwargs``) are taken out before the algorithm is built.
+``noise_type``, ``noise_std``, ``env_kwargs``, ``curriculum``) are taken out before the
+algorithm is built. ``curriculum`` is a mapping of :class:`agents.curriculum.
+OptimalStartCurriculum` arguments (``start_prob``, ``anneal_fraction``, ``n_trajectories``,
+...), or absent.
 """
 
 from __future__ import annotations
@@ -54,7 +57,7 @@ ALGOS = ("ppo", "sac", "td3")
 PROFILE_SEPARATOR = "@"
 #: keys consumed by the training script itself, not passed to the algorithm constructor
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "noise_type", "noise_std",
-            "env_kwargs")
+            "env_kwargs", "curriculum")
 
 _ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU",
                 "gelu": "GELU", "silu": "SiLU"}

@@ -1,0 +1,163 @@
+"""Start-state curriculum from optimal trajectories (a reverse curriculum for the landing envs).
+
+Why: the soft landing is a thin target for exploration. The lander's engine only steers, the
+propellant margin over the optimum is ~8 % (277 of 300 kg for ``zhu2007``), and a policy that
+wastes a few percent of its thrust on exploration noise runs dry and crashes. Almost every
+episode of an untrained policy ends in a crash at hundreds of m/s, so PPO sees almost no signal
+of what a landing looks like (measured: 0 successes in 2·10⁶ steps from the dispersion alone).
+
+What: with probability ``p`` an episode does not start from the scenario's dispersion but from a
+point of a minimum-fuel trajectory (Pontryagin, :func:`optimizers.pontryagin.solve_many`) of a
+dispersed case, at a uniformly drawn fraction of its flight time, with the episode clock set to
+that time (so the observation's time feature is consistent). Late starts teach the endgame first;
+``p`` decays linearly from ``start_prob`` to 0 over the first ``anneal_fraction`` of training, so
+the last part of training — and every evaluation — uses the true initial-state distribution
+(Florensa et al. 2017, "Reverse curriculum generation"; Salimans & Chen 2018, "Learning
+Montezuma's Revenge from a single demonstration"). The policy is never shown an optimal action:
+only states to start from.
+
+Only the planar soft-landing env is supported (the Pontryagin solver is planar).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.vec_env import VecEnvWrapper
+
+__all__ = ["OptimalStartCurriculum", "optimal_start_pool"]
+
+
+def optimal_start_pool(scenario, n_trajectories: int, seed: int, n_points: int = 101,
+                       progress: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """States along minimum-fuel trajectories of ``n_trajectories`` dispersed cases.
+
+    Returns
+    -------
+    states_nd : ndarray, shape (n_ok, n_points, 5)
+        Normalised (r, vr, θ, ω, m) at ``n_points`` equally spaced times of each converged
+        solution (the last point, touchdown, excluded: nothing is left to learn there).
+    times_s : ndarray, shape (n_ok, n_points)
+        Time since the case's initial state (s).
+    """
+    from optimizers.pontryagin import solve_many
+
+    rng = np.random.default_rng(seed)
+    rows = scenario.sample_initial(rng, int(n_trajectories))
+    sols = [s for s in solve_many(scenario, rows, progress=progress) if s.success]
+    if not sols:
+        raise RuntimeError("no optimal trajectory converged; cannot build the curriculum")
+    states, times = [], []
+    for sol in sols:
+        t = np.linspace(0.0, sol.tf_s, n_points + 1)[:-1]
+        states.append(sol.state_costate_at(t)[:, :5])
+        times.append(t)
+    return np.asarray(states), np.asarray(times)
+
+
+def _set_states(native, idx: np.ndarray, state_nd: np.ndarray, t_s: np.ndarray) -> None:
+    """Put sub-envs ``idx`` of a native lander vector env at ``state_nd`` and clock ``t_s``.
+
+    Uses the env's public ``set_states`` when it has one; otherwise its batch directly
+    (``LanderBatch.set_state`` starts the episode's fuel count there, then the clock is set).
+    """
+    if hasattr(native, "set_states"):
+        native.set_states(idx, state_nd, t_s)
+        return
+    batch = native._batch
+    batch.set_state(idx, state_nd)
+    batch.t_nd[idx] = np.asarray(t_s, dtype=np.float64) / native._task.time_ref_s
+
+
+class OptimalStartCurriculum(VecEnvWrapper):
+    """Start a share of the episodes from states on optimal trajectories (see module docstring).
+
+    :param venv: an :class:`agents.vec_env.LanderSB3VecEnv` of ``LunarSoftLanding-v0`` (it must
+        be the innermost env: the wrapper sets the native batch's state).
+    :param total_timesteps: training length; ``p`` reaches 0 at ``anneal_fraction`` of it.
+    :param start_prob: ``p`` at the start of training.
+    :param anneal_fraction: fraction of training over which ``p`` decays linearly to 0.
+    :param n_trajectories: dispersed cases solved to build the pool of start states.
+    :param min_time_fraction, max_time_fraction: start times are drawn uniformly in this
+        fraction of each optimal flight time.
+    :param seed: seed of the cases and of the draws.
+    :param progress: progress bar while solving.
+    """
+
+    def __init__(self, venv, total_timesteps: int, start_prob: float = 0.8,
+                 anneal_fraction: float = 0.7, n_trajectories: int = 256,
+                 min_time_fraction: float = 0.0, max_time_fraction: float = 1.0,
+                 seed: int = 0, progress: bool = True) -> None:
+        super().__init__(venv)
+        native = getattr(venv, "native", None)
+        if native is None or not hasattr(native, "scenario"):
+            raise TypeError("OptimalStartCurriculum wraps the LanderSB3VecEnv of "
+                            "agents.vec_env.make_sb3_vec_env directly")
+        if np.asarray(native.state_nd).shape[1] != 5:
+            raise ValueError("OptimalStartCurriculum supports the planar LunarSoftLanding-v0 only")
+        if not (0.0 <= start_prob <= 1.0):
+            raise ValueError(f"start_prob={start_prob!r} must be in [0, 1]")
+        if not (0.0 < anneal_fraction <= 1.0):
+            raise ValueError(f"anneal_fraction={anneal_fraction!r} must be in (0, 1]")
+        if not (0.0 <= min_time_fraction < max_time_fraction <= 1.0):
+            raise ValueError("need 0 <= min_time_fraction < max_time_fraction <= 1, got "
+                             f"{min_time_fraction!r}, {max_time_fraction!r}")
+        self.native = native
+        self.total_timesteps = int(total_timesteps)
+        self.start_prob = float(start_prob)
+        self.anneal_fraction = float(anneal_fraction)
+        self.min_time_fraction = float(min_time_fraction)
+        self.max_time_fraction = float(max_time_fraction)
+        self.rng = np.random.default_rng(seed + 7919)
+        t0 = time.perf_counter()
+        self.pool_states, self.pool_times = optimal_start_pool(
+            native.scenario, n_trajectories, seed, progress=progress)
+        self.pool_build_s = time.perf_counter() - t0
+        self.num_timesteps = 0
+        self.n_curriculum_starts = 0
+        self.n_starts = 0
+
+    @property
+    def current_prob(self) -> float:
+        """``p`` at the current training step."""
+        frac = self.num_timesteps / max(self.total_timesteps * self.anneal_fraction, 1.0)
+        return self.start_prob * max(0.0, 1.0 - frac)
+
+    def _restart(self, idx: np.ndarray, obs: np.ndarray) -> np.ndarray:
+        """Move sub-envs ``idx`` (just reset) to pool states with probability ``p``."""
+        self.n_starts += len(idx)
+        p = self.current_prob
+        if p <= 0.0 or len(idx) == 0:
+            return obs
+        pick = idx[self.rng.random(len(idx)) < p]
+        if len(pick) == 0:
+            return obs
+        n_traj, n_pts = self.pool_times.shape
+        k = self.rng.integers(0, n_traj, len(pick))
+        lo = int(np.floor(self.min_time_fraction * n_pts))
+        hi = max(int(np.ceil(self.max_time_fraction * n_pts)), lo + 1)
+        j = self.rng.integers(lo, hi, len(pick))
+        y = self.pool_states[k, j]
+        t_s = self.pool_times[k, j]
+        _set_states(self.native, pick, y, t_s)
+        obs = np.array(obs, copy=True)
+        obs[pick] = self.native.observation_from_state(y, t_s)
+        self.n_curriculum_starts += len(pick)
+        return obs
+
+    def reset(self) -> np.ndarray:
+        obs = self.venv.reset()
+        return self._restart(np.arange(self.num_envs), obs)
+
+    def step_wait(self):
+        obs, rew, done, infos = self.venv.step_wait()
+        self.num_timesteps += self.num_envs
+        if done.any():
+            obs = self._restart(np.flatnonzero(done), obs)
+        return obs, rew, done, infos
+
+    def curriculum_info(self) -> dict[str, Any]:
+        return {"p": self.current_prob, "curriculum_starts": self.n_curriculum_starts,
+                "starts": self.n_starts}
