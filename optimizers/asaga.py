@@ -118,6 +118,17 @@ class ASAGA:
     progress_bar : bool
         Show a tqdm progress bar.
 
+    Examples
+    --------
+    >>> from optimizers.asaga import ASAGA
+    >>> from optimizers.problems import PlanarLandingProblem
+    >>> res = ASAGA(n_generations=5).solve(PlanarLandingProblem(), seed=0)
+    >>> sorted(res.terminal_errors)
+    ['radial_velocity_m_s', 'radius_m', 'speed_m_s', 'tangential_velocity_m_s']
+
+    As a pygmo algorithm: ``pygmo.algorithm(ASAGA()).evolve(pop)`` with
+    ``pop = pygmo.population(problem.to_pygmo(), size=20)``.
+
     Decisions where the paper is silent or ambiguous
     ------------------------------------------------
     - *Generation counter.* T runs 1 … Tmax, so T_i = T0 at the first generation (eq. 19) and
@@ -273,23 +284,18 @@ class ASAGA:
 
         Re-crossing of pairs with a child out of bounds, then clipping.
         """
-        n = A.shape[0]
-        A2 = np.empty_like(A)
-        B2 = np.empty_like(B)
-        todo = np.arange(n)
-        for _attempt in range(self.n_recross_max + 1):
-            alpha = rng.uniform(0.0, r[todo])[:, None]
-            beta = rng.uniform(0.0, r[todo])[:, None]
-            a = (1.0 - alpha) * A[todo] + beta * B[todo]
-            b = (1.0 - beta) * B[todo] + alpha * A[todo]
-            A2[todo] = a
-            B2[todo] = b
-            ok = (np.all((a >= lb) & (a <= ub), axis=1) & np.all((b >= lb) & (b <= ub), axis=1))
-            todo = todo[~ok]
-            if todo.size == 0:
-                break
-        self._n_clipped = int(todo.size)
-        return np.clip(A2, lb, ub), np.clip(B2, lb, ub)
+        # all R_max + 1 attempts drawn at once; each pair keeps its first attempt whose two
+        # children are inside the bounds (same law as re-crossing one attempt at a time)
+        n_try = self.n_recross_max + 1
+        alpha = rng.uniform(0.0, 1.0, (n_try, A.shape[0]))[..., None] * r[None, :, None]
+        beta = rng.uniform(0.0, 1.0, (n_try, A.shape[0]))[..., None] * r[None, :, None]
+        a = (1.0 - alpha) * A[None] + beta * B[None]
+        b = (1.0 - beta) * B[None] + alpha * A[None]
+        ok = (((a >= lb) & (a <= ub)).all(axis=2) & ((b >= lb) & (b <= ub)).all(axis=2))
+        first = np.where(ok.any(axis=0), ok.argmax(axis=0), n_try - 1)
+        cols = np.arange(A.shape[0])
+        self._n_clipped = int((~ok.any(axis=0)).sum())
+        return np.clip(a[first, cols], lb, ub), np.clip(b[first, cols], lb, ub)
 
     def mutate(self, C: np.ndarray, pm: np.ndarray, k: np.ndarray, lb: np.ndarray,
                ub: np.ndarray, rng: np.random.Generator) -> np.ndarray:
