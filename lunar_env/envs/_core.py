@@ -145,9 +145,9 @@ class LanderBatch:
 
         ``controls`` must already be validated and mapped to radians/throttle; ``powered`` is the
         result of :meth:`_powered` when a caller's fast path already computed it. Returns a dict of
-        arrays of length k: ``reward``, ``terminated``, ``truncated``, ``touchdown``,
-        ``touchdown_speed_m_s`` (NaN if no touchdown), ``miss_distance_m`` (NaN if not a pinpoint
-        task or no touchdown), ``is_success``.
+        arrays of length k: ``reward``, ``terminated`` (touchdown), ``truncated``,
+        ``touchdown_speed_m_s`` (NaN if no touchdown), ``miss_distance_m`` (NaN unless a pinpoint
+        episode ended), ``is_success``.
         """
         task = self.task
         m_before = self.y[:, -1] if idx is None else self.y[idx, -1]
