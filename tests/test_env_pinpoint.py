@@ -159,3 +159,49 @@ def test_pickle_render_and_bad_scenario():
     np.testing.assert_array_equal(clone.step(np.ones(2))[0], env.step(np.ones(2))[0])
     with pytest.raises(ValueError, match="not a pinpoint"):
         gym.make(ENV_ID, scenario="zhu2007")
+
+
+@pytest.mark.slow
+def test_optimal_pinpoint_landing_is_landable_and_ranked_best():
+    """[001]'s optimum (GPM + direct shooting of :mod:`optimizers`) replayed open loop lands at
+    the gate softly and on target with 0.25 s steps, and its return at the default 1 s steps
+    beats braking, climbing, diving and random policies."""
+    import math
+
+    from lunar_env import get_scenario
+    from optimizers.reproduce.peng2012 import get_solver, replay_in_env
+
+    solver = get_solver(get_scenario("peng2012"))
+    ocp = solver.ocp
+    solver.build()
+    nominal = solver.solve()
+    fine = replay_in_env(nominal, ocp, dt_s=0.25, substeps=2)
+    assert fine["is_success"] and fine["touchdown_speed_m_s"] < 2.0
+    assert fine["miss_distance_m"] < 5.0
+    ssol = nominal.extra["shooting_solution"]
+    pp = ssol.control_law()
+    t_ref = ocp.scaling.time_s
+    env = gym.make(ENV_ID).unwrapped
+
+    def run(policy):
+        env.reset(options={"nominal": True})
+        ret, k = 0.0, 0
+        while True:
+            _, r, term, trunc, _ = env.step(policy(k))
+            ret += r
+            k += 1
+            if term or trunc:
+                return ret
+
+    def optimal(k):  # the law averaged over each 1 s step
+        ts = k + (np.arange(8) + 0.5) / 8
+        u = pp(np.minimum(ts / t_ref, ssol.tf_nd)[None, :])[0].mean(axis=0)
+        return action_from_angles(u[0], u[1]).astype(np.float32)
+
+    r_opt = run(optimal)
+    rng = np.random.default_rng(0)
+    others = [run(lambda k: action_from_angles(0.0, math.pi).astype(np.float32)),
+              run(lambda k: np.array([1.0, 0.111], np.float32)),
+              run(lambda k: np.array([-1.0, 0.111], np.float32))]
+    others += [run(lambda k: rng.uniform(-1, 1, 2).astype(np.float32)) for _ in range(20)]
+    assert r_opt > max(others)
