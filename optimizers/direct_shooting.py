@@ -268,14 +268,14 @@ class DirectShooting:
         ShootingSolution
         """
         t_start = time.perf_counter()
-        b = self._build(ocp)
-        nu = b["nu"]
+        nu = ocp.n_control
         u = np.asarray(node_controls, float)
         if u.shape != (len(self.fractions), nu) or not np.all(np.isfinite(u)):
             raise ValueError(f"node_controls must be finite with shape "
                              f"({len(self.fractions)}, {nu}), got shape {u.shape}")
         if not np.isfinite(tf_nd):
             raise ValueError(f"tf_nd = {tf_nd!r} must be finite")
+        b = self._build(ocp)
         x0 = np.asarray(ocp.initial_state if initial_state is None else initial_state, float)
         z = np.concatenate([u.ravel(), [float(tf_nd)]])
         if self.form == "lifted":

@@ -37,7 +37,7 @@ from .problems.pinpoint import PinpointOCP, piecewise_linear_control
 
 __all__ = [
     "ControlGuess", "nominal_guess", "random_guess", "guess_to_gpm", "solve_serial",
-    "solve_shooting_only", "dense_collocation_check", "SerialSolver",
+    "solve_shooting_only", "dense_collocation_check", "SerialSolver", "get_solver",
 ]
 
 
@@ -266,11 +266,18 @@ def _result(ocp: PinpointOCP, ssol: ShootingSolution, gsol: GPMSolution | None, 
 _SOLVERS: dict[tuple, SerialSolver] = {}
 
 
+def get_solver(problem="peng2012", **kwargs) -> SerialSolver:
+    """The process-wide :class:`SerialSolver` for ``problem`` and options (built once)."""
+    return _solver(problem, **kwargs)
+
+
 def _solver(problem, **kwargs) -> SerialSolver:
-    ocp = _as_ocp(problem)
-    key = (ocp.scenario.name, id(ocp.scenario), tuple(sorted(kwargs.items())))
-    if key not in _SOLVERS:
-        _SOLVERS[key] = SerialSolver(ocp, **kwargs)
+    if isinstance(problem, str):
+        problem = get_scenario(problem)
+    sc = problem.scenario if isinstance(problem, PinpointOCP) else problem
+    key = (id(sc), tuple(sorted(kwargs.items())))
+    if key not in _SOLVERS or _SOLVERS[key].ocp.scenario is not sc:
+        _SOLVERS[key] = SerialSolver(problem, **kwargs)
     return _SOLVERS[key]
 
 
