@@ -189,6 +189,11 @@ class LanderEnv(gym.Env):
 class LanderVectorEnv(VectorEnv):
     """Base of the native vector envs: all N landers in one compiled integrator call per step.
 
+    The powered flight of every active lander is one call of the compiled kernel
+    (:func:`lunar_env.integrators.integrate_prepared`). Only landers whose engine stops in the
+    step add work: one more batched call integrates the free falls of all of them, and a
+    lander that passes a speed minimum above the cut-off speed is resumed by itself (rare).
+
     Autoreset: ``AutoresetMode.NEXT_STEP`` (Gymnasium's default, as ``SyncVectorEnv``): the step
     after a sub-env terminated or truncated resets it, ignores its action and returns its reset
     observation with reward 0 and ``terminated = truncated = False``.
