@@ -223,16 +223,28 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
 
         def _on_training_start(self) -> None:
             self._last_saved = self.model.num_timesteps
+            self._last_rollout_end = self.model.num_timesteps
 
         def _on_step(self) -> bool:
             return True
 
         def _on_rollout_end(self) -> None:
+            self._last_rollout_end = self.model.num_timesteps
             if self.model.num_timesteps - self._last_saved >= self.save_every_steps:
                 self.save_now()
 
-        def save_now(self) -> Path:
-            """Write the checkpoint for the current ``num_timesteps`` and return its path."""
+        def save_now(self, interrupted: bool = False) -> Path:
+            """Write the checkpoint for the current ``num_timesteps`` and return its path.
+
+            ``interrupted``: called in the middle of a rollout. An on-policy algorithm has not
+            trained on the partial rollout, so its step counter is rolled back to the last
+            rollout end: the resumed run collects those steps again and ends after exactly as
+            many trained steps as an uninterrupted run.
+            """
+            from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
+
+            if interrupted and isinstance(self.model, OnPolicyAlgorithm):
+                self.model.num_timesteps = self._last_rollout_end
             self.num_timesteps = self.model.num_timesteps  # the parent names files after this
             path = Path(self._checkpoint_path(extension="zip"))
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -462,7 +474,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                         reset_num_timesteps=not resume, tb_log_name="run",
                         progress_bar=not run.get("no_progress"))
     except KeyboardInterrupt:
-        path = ckpt_cb.save_now()
+        path = ckpt_cb.save_now(interrupted=True)
         print(f"\nInterrupted at step {model.num_timesteps}; checkpoint {path}.\n"
               f"Continue with: python train.py --resume {run_dir}", file=sys.stderr)
         venv.close()
