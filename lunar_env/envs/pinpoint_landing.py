@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from .. import dynamics as dyn
@@ -21,6 +22,37 @@ __all__ = ["LunarPinpointLandingEnv", "LunarPinpointLandingVectorEnv", "angles_f
            "action_from_angles"]
 
 _PENG = get_scenario("peng2012")
+
+# The orbital frame of lunar_env.dynamics, compiled (one definition of the geometry).
+_orbital_frame_jit = numba.njit(cache=True, inline="always")(dyn.orbital_frame)
+
+
+@numba.njit(cache=True)
+def _observation_kernel(y, t_s, c, lo, hi):  # pragma: no cover  (compiled)
+    """Observations (B, 9) float32 of states y (B, 7) at times t_s (B,); ``c`` packs the
+    constants (see ``_PinpointTask._obs_consts``). One compiled loop serves the single env and
+    the vector envs, so both give bit-identical observations."""
+    n = y.shape[0]
+    out = np.empty((n, 9), dtype=np.float32)
+    raw = np.empty(9)
+    for i in range(n):
+        x, yy, z = y[i, 0], y[i, 1], y[i, 2]
+        vx, vy, vz = y[i, 3], y[i, 4], y[i, 5]
+        f = _orbital_frame_jit(x, yy, z, c[0], c[1], c[2])
+        dx, dy, dz = c[3] - x, c[4] - yy, c[5] - z
+        r = np.sqrt(x * x + yy * yy + z * z)
+        raw[0] = (r - c[6]) * c[7]
+        raw[1] = (dx * f[0] + dy * f[1] + dz * f[2]) * c[8]
+        raw[2] = (dx * f[3] + dy * f[4] + dz * f[5]) * c[8]
+        raw[3] = (dx * f[6] + dy * f[7] + dz * f[8]) * c[8]
+        raw[4] = (vx * f[0] + vy * f[1] + vz * f[2]) * c[9]
+        raw[5] = (vx * f[3] + vy * f[4] + vz * f[5]) * c[10]
+        raw[6] = (vx * f[6] + vy * f[7] + vz * f[8]) * c[9]
+        raw[7] = (y[i, 6] - c[11]) / c[12]
+        raw[8] = t_s[i] / c[13]
+        for j in range(9):
+            out[i, j] = min(max(raw[j], lo[j]), hi[j])
+    return out
 
 
 def angles_from_action(action, alpha_bounds_rad: tuple[float, float] = _PENG.alpha_bounds_rad,
@@ -112,10 +144,11 @@ class _PinpointTask:
         self.obs_low = np.array([0.0, -3.0, -3.0, -3.0, -20.0, -2.0, -20.0, 0.0, 0.0])
         self.obs_high = np.array([20.0, 3.0, 3.0, 3.0, 20.0, 2.0, 20.0, 1.5, 2.0])
         self.observation_space = box(self.obs_low, self.obs_high)
-        self._obs_low_list = self.obs_low.tolist()
-        self._obs_high_list = self.obs_high.tolist()
-        self._normal_list = [float(c) for c in self.plane_normal]
-        self._target_list = self.target_nd.tolist()
+        L, V = self.length_ref_m, self.velocity_ref_m_s
+        self._obs_consts = np.array([
+            *self.plane_normal, *self.target_nd, self.r_stop_nd, L / self.altitude_scale_m,
+            L / self.range_scale_m, V / (0.1 * self.speed_scale_m_s), V / self.speed_scale_m_s,
+            self.dry_mass_nd, self.prop_nominal_nd, self.time_limit_s])
 
     # -- mapping --------------------------------------------------------------------------------
     def controls_from_actions(self, a: np.ndarray) -> np.ndarray:
@@ -135,56 +168,18 @@ class _PinpointTask:
         return (alpha, beta, thr)
 
     def observation_one(self, y: list, t_s: float) -> np.ndarray:
-        """:meth:`observation` of one state given as a list of floats (scalar arithmetic)."""
-        x, yy, z, vx, vy, vz, m = y
-        n = self._normal_list
-        f = [float(c) for c in dyn.orbital_frame(x, yy, z, n[0], n[1], n[2])]
-        tx, ty, tz = self._target_list
-        dx, dy, dz = tx - x, ty - yy, tz - z
-        L, V = self.length_ref_m, self.velocity_ref_m_s
-        kd = L / self.range_scale_m
-        r = math.sqrt(x * x + yy * yy + z * z)
-        raw = ((r - self.r_stop_nd) * (L / self.altitude_scale_m),
-               (dx * f[0] + dy * f[1] + dz * f[2]) * kd,
-               (dx * f[3] + dy * f[4] + dz * f[5]) * kd,
-               (dx * f[6] + dy * f[7] + dz * f[8]) * kd,
-               (vx * f[0] + vy * f[1] + vz * f[2]) * (V / (0.1 * self.speed_scale_m_s)),
-               (vx * f[3] + vy * f[4] + vz * f[5]) * (V / self.speed_scale_m_s),
-               (vx * f[6] + vy * f[7] + vz * f[8]) * (V / (0.1 * self.speed_scale_m_s)),
-               (m - self.dry_mass_nd) / self.prop_nominal_nd,
-               t_s / self.time_limit_s)
-        lo, hi = self._obs_low_list, self._obs_high_list
-        return np.array([min(max(v, lo[i]), hi[i]) for i, v in enumerate(raw)],
-                        dtype=np.float32)
+        """:meth:`observation` of one state given as a list of floats."""
+        return _observation_kernel(np.array([y]), np.array([t_s]), self._obs_consts,
+                                   self.obs_low, self.obs_high)[0]
 
     def altitude_one(self, y: list) -> float:
         return (math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) - self.surface_radius_nd) \
             * self.length_ref_m
 
-    def _frame(self, y: np.ndarray):
-        n = self.plane_normal
-        f = dyn.orbital_frame(y[:, 0], y[:, 1], y[:, 2], n[0], n[1], n[2])
-        return (np.stack(f[0:3], axis=1), np.stack(f[3:6], axis=1), np.stack(f[6:9], axis=1))
-
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-        xr, yt, zn = self._frame(y)
-        pos = y[:, 0:3]
-        vel = y[:, 3:6]
-        d = self.target_nd[None, :] - pos
-        L, V = self.length_ref_m, self.velocity_ref_m_s
-        r = np.sqrt(np.sum(pos * pos, axis=1))
-        obs = np.empty((len(y), 9))
-        obs[:, 0] = (r - self.r_stop_nd) * (L / self.altitude_scale_m)
-        obs[:, 1] = np.sum(d * xr, axis=1) * (L / self.range_scale_m)
-        obs[:, 2] = np.sum(d * yt, axis=1) * (L / self.range_scale_m)
-        obs[:, 3] = np.sum(d * zn, axis=1) * (L / self.range_scale_m)
-        obs[:, 4] = np.sum(vel * xr, axis=1) * (V / (0.1 * self.speed_scale_m_s))
-        obs[:, 5] = np.sum(vel * yt, axis=1) * (V / self.speed_scale_m_s)
-        obs[:, 6] = np.sum(vel * zn, axis=1) * (V / (0.1 * self.speed_scale_m_s))
-        obs[:, 7] = (y[:, 6] - self.dry_mass_nd) / self.prop_nominal_nd
-        obs[:, 8] = t_s / self.time_limit_s
-        np.clip(obs, self.obs_low, self.obs_high, out=obs)
-        return obs.astype(np.float32)
+        return _observation_kernel(np.ascontiguousarray(y, dtype=np.float64),
+                                   np.ascontiguousarray(t_s, dtype=np.float64),
+                                   self._obs_consts, self.obs_low, self.obs_high)
 
     def speed_m_s(self, y: np.ndarray) -> np.ndarray:
         """Speed relative to the rotating Moon (m/s), shape (B,)."""
