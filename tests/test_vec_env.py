@@ -123,3 +123,21 @@ def test_sb3_adapter_same_step_reset_and_ppo():
     model = PPO("MlpPolicy", venv, n_steps=8, batch_size=12, n_epochs=1, seed=0, device="cpu")
     model.learn(total_timesteps=48)
     venv.close()
+
+
+def test_sb3_adapter_pinpoint_terminal_info():
+    from agents.vec_env import make_sb3_vec_env
+
+    venv = make_sb3_vec_env("lunar_env:LunarPinpointLanding-v0", n_envs=2, seed=1,
+                            time_limit_s=3.0)
+    obs = venv.reset()
+    assert obs.shape == (2, 9) and obs.dtype == np.float32
+    for _ in range(3):
+        obs, rew, done, infos = venv.step(np.zeros((2, 2), np.float32))
+    assert done.all() and all(i["TimeLimit.truncated"] for i in infos)
+    assert all(i["miss_distance_m"] > 1e5 for i in infos)  # still ~500 km from the target
+    assert np.all(rew < -5.0)  # the truncation is charged like a crash
+    with pytest.raises(ValueError, match="NaN or inf"):
+        venv.step(np.full((2, 2), np.nan, np.float32))
+    with pytest.raises(ValueError, match="n_envs"):
+        make_sb3_vec_env("LunarSoftLanding-v0", n_envs=0)
