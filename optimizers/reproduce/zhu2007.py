@@ -280,6 +280,14 @@ def main(argv: list[str] | None = None) -> int:
                  for ss, r, c in zip(seeds, runs, conv, strict=True)],
     }
 
+    # why runs do or do not converge: how often the Metropolis rule accepted an annealing move
+    # (~1 means a random walk), by thirds of the run
+    acc = np.array([r.extra["history_anneal_acceptance"] for r in runs])
+    thirds = np.array_split(np.arange(acc.shape[1]), 3)
+    measured["anneal_acceptance_by_third"] = [float(acc[:, t].mean()) for t in thirds]
+    measured["clipped_pair_fraction"] = float(np.mean(
+        [np.mean(r.extra["history_clipped_pairs"]) for r in runs]))
+
     rows = [
         ("converged runs (|dV|<0.5 m/s, |dr|<1 m)", f"{PUBLISHED['n_converged']}/10",
          f"{measured['n_converged']}/{n_runs}"),
@@ -301,6 +309,8 @@ def main(argv: list[str] | None = None) -> int:
         ("wall time per ASAGA run (s)", "—", _fmt(measured["wall_s_per_run_mean"], 2)),
         ("CPU time per ASAGA run (s)", "—", _fmt(measured["cpu_s_per_run_mean"], 2)),
         ("evaluations per ASAGA run", "—", str(measured["n_fevals_per_run"])),
+        ("annealing moves accepted, 1st/2nd/3rd third of run", "—",
+         "/".join(f"{v:.0%}" for v in measured["anneal_acceptance_by_third"])),
     ]
     w0 = max(len(r[0]) for r in rows)
     print()
