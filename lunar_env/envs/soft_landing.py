@@ -223,8 +223,11 @@ _DOC = """
     −log(1 + v_td / 1 m/s) with the touchdown speed v_td; a truncated episode is charged with
     the speed it would reach at the surface by energy conservation. The term's slope at
     v_td = 0 is hundreds of times the fuel saved by landing harder, so the fuel-optimal soft
-    landing has the best return (tested against crashing, hovering, flying past and random
-    policies in ``tests/test_env_soft_landing.py``).
+    landing has the best return (tested against crashing, hovering, flying past, landing
+    harder and random policies in ``tests/test_env_soft_landing.py``). Measured on the nominal
+    ``zhu2007`` case: the fuel-optimal law returns −1.38 (277.59 kg, touchdown at 0.58 m/s);
+    cutting off 5 s early −3.89, horizontal braking −7.33, diving −7.63, flying past −7.98,
+    hovering −8.88, the best of 100 random policies −7.46.
 
     ## Starting State
 
@@ -238,10 +241,14 @@ _DOC = """
 
     1. Termination: touchdown, the radius crossing the surface radius (located inside the
        step). The engine cuts off when the speed relative to the surface reaches a minimum
-       inside a step (ideally zero) or when the propellant is exhausted; the lander then falls
-       freely (throttle 0) and the fall to touchdown is integrated in the same step call, so
-       the episode ends in the step in which the engine stops. Success: touchdown speed
-       <= ``success_speed_m_s`` (default 5 m/s, a free fall from 7.7 m).
+       inside a step (located by the integrator's ``SpeedMinimum`` event; ideally the minimum
+       is zero) at or below ``cutoff_speed_m_s`` (default 20 m/s: a minimum at a higher speed
+       is a steering error, not the terminal phase, and the engine keeps burning; a minimum at
+       a step boundary caused by the new action is not a cut-off either), or when the
+       propellant is exhausted. The lander then falls freely (throttle 0) and the fall to
+       touchdown is integrated in the same step call, so the episode ends in the step in which
+       the engine stops. Success: touchdown speed <= ``success_speed_m_s`` (default 5 m/s, a
+       free fall from 7.7 m).
     2. Truncation: time >= ``time_limit_s`` (default 1.5 × the scenario's upper final-time
        bound, 1050 s for ``zhu2007``), or a free fall that does not reach the surface within
        ``max_fall_s`` (default the time limit).
