@@ -1,0 +1,743 @@
+"""Imitation of the optimiser: behaviour cloning (BC) and DAgger into an SB3 PPO policy.
+
+::
+
+    python -m agents.dataset --n 1000                                   # optimal landings
+    python -m agents.imitation bc --dataset data/imitation/LunarSoftLanding-v0_n1000_seed0.npz
+    python -m agents.imitation dagger --dataset <same> \\
+        --init runs/imitation/bc_LunarSoftLanding-v0_1
+    python -m agents.imitation bc --quick --dataset small.npz           # CI-sized
+    python -m agents.imitation bc --resume runs/imitation/bc_LunarSoftLanding-v0_1
+    python train.py --init-from runs/imitation/bc_LunarSoftLanding-v0_1  # PPO fine-tuned from BC
+    python -m agents.imitation evaluate --model BC=runs/imitation/bc_... \\
+        --model DAgger=runs/imitation/dagger_... --model PPO=runs/ppo/... --n-states 1000
+
+The ``imitation`` library pins gymnasium 0.29 / SB3 2.2, so both algorithms are written here on
+SB3's ``ActorCriticPolicy`` and torch:
+
+- **BC** ([Pomerleau 1991]; as in ``imitation.algorithms.bc``): the policy's Gaussian *mean*
+  action is regressed on the dataset's optimal actions (mean-squared error; decision: the
+  evaluation flies the deterministic mean, and MSE on it is what matters; ``log_std`` keeps its
+  initial value so PPO starts exploring from ``log_std_init``). Only the actor (``mlp_extractor``
+  policy branch + ``action_net``) is trained; the value branch is left for PPO.
+- **DAgger** ([Ross, Gordon & Bagnell 2011]): iteration i rolls out the current policy
+  (β = 0: the first "expert" iteration is the BC dataset itself) in the native vector env,
+  labels visited states with the closed-loop expert :class:`optimizers.pontryagin.
+  PontryaginExpert` (re-solves the optimal problem from the state), aggregates, and retrains
+  the policy (warm-started) on the union, each minibatch mixing ``dagger_fraction`` DAgger
+  labels with optimal-trajectory samples. Labels: the thrust angle of the expert's new plan at
+  the middle of the env step (the dataset's label rule); where the expert holds, falls back or
+  plans with the ground constraint, the angle it returns.
+
+Output: a run directory ``runs/imitation/<bc|dagger>_<env id>_<k>/`` in the layout of
+:mod:`agents.train` — ``config.yml``, ``args.yml`` (``algo: ppo``), ``command.txt``, ``tb/``
+(TensorBoard), ``checkpoints/``, and ``model.zip``, a Stable-Baselines3 **PPO** model whose
+policy holds the cloned weights (``PPO.load`` works; ``agents.evaluate --model`` and
+``train.py --init-from`` accept the directory). Hyperparameters: ``agents/hyperparams/
+imitation.yml`` keyed by env id. ``--resume RUN_DIR`` continues from the newest checkpoint
+(BC: epoch; DAgger: iteration, whose labels are kept on disk and not recomputed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import shlex
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+__all__ = ["build_model", "mean_actions", "fit_policy", "train_bc", "train_dagger",
+           "rollout_policy", "label_episodes", "load_policy_model", "main"]
+
+DEFAULT_ENV_ID = "LunarSoftLanding-v0"
+_HP_FILE = Path(__file__).parent / "hyperparams" / "imitation.yml"
+_BC_CKPT = re.compile(r"^bc_epoch_(\d+)\.pt$")
+_DG_CKPT = re.compile(r"^dagger_iter_(\d+)\.zip$")
+
+
+# ----------------------------------------------------------------------------- model
+
+
+def _policy_kwargs(pk: dict[str, Any]) -> dict[str, Any]:
+    from agents.hyperparams import resolve_algo_kwargs
+
+    return resolve_algo_kwargs({"policy_kwargs": pk}, "ppo")["policy_kwargs"]
+
+
+def build_model(env_id: str, env_kwargs: dict[str, Any] | None, policy_kwargs: dict[str, Any],
+                seed: int, device: str = "cpu"):
+    """A fresh SB3 PPO model (MlpPolicy) on a one-lander SB3 vec env of ``env_id``.
+
+    Only its policy is trained here; the PPO wrapper makes the saved zip loadable by
+    ``PPO.load`` and fine-tunable.
+    """
+    from stable_baselines3 import PPO
+
+    from agents.vec_env import make_sb3_vec_env
+
+    venv = make_sb3_vec_env(env_id, 1, seed=seed, **(env_kwargs or {}))
+    return PPO("MlpPolicy", venv, policy_kwargs=_policy_kwargs(policy_kwargs), seed=seed,
+               device=device, verbose=0)
+
+
+def mean_actions(policy, obs):
+    """Deterministic (mean) actions of an ``ActorCriticPolicy`` for a torch batch ``obs``."""
+    features = policy.extract_features(obs, policy.pi_features_extractor)
+    latent_pi = policy.mlp_extractor.forward_actor(features)
+    return policy.action_net(latent_pi)
+
+
+def _actor_parameters(policy) -> list:
+    return (list(policy.pi_features_extractor.parameters())
+            + list(policy.mlp_extractor.policy_net.parameters())
+            + list(policy.action_net.parameters()))
+
+
+def load_policy_model(path: str | Path, device: str = "cpu"):
+    """Load a PPO zip (or a run directory holding ``model.zip``)."""
+    from stable_baselines3 import PPO
+
+    p = Path(path)
+    if p.is_dir():
+        p = p / "model.zip"
+    if not p.exists():
+        raise FileNotFoundError(f"no model at {p}; give a run directory with model.zip or a .zip")
+    return PPO.load(p, device=device)
+
+
+# ----------------------------------------------------------------------------- fitting
+
+
+def fit_policy(policy, obs: np.ndarray, act: np.ndarray, *, n_epochs: int, batch_size: int,
+               learning_rate: float, learning_rate_final: float, rng: np.random.Generator,
+               extra_obs: np.ndarray | None = None, extra_act: np.ndarray | None = None,
+               extra_fraction: float = 0.0, val_obs: np.ndarray | None = None,
+               val_act: np.ndarray | None = None, optimizer=None, start_epoch: int = 0,
+               on_epoch=None, logger=None, progress: bool = True, log_prefix: str = "bc",
+               step_offset: int = 0) -> dict[str, Any]:
+    """Regress the policy's mean action on ``act`` (MSE), epoch by epoch.
+
+    Parameters
+    ----------
+    policy : ActorCriticPolicy
+    obs, act : ndarray, shapes (N, n_obs), (N, n_act)
+        Main data; one epoch is one pass over it in random order.
+    extra_obs, extra_act, extra_fraction :
+        Extra data (DAgger labels), ``extra_fraction`` of every minibatch, drawn with
+        replacement.
+    val_obs, val_act : optional validation data (loss logged per epoch).
+    optimizer : torch optimizer, optional
+        Reused across calls (resume); created (Adam on the actor) if None.
+    start_epoch : int
+        First epoch index (resume); the cosine learning-rate schedule runs over ``n_epochs``.
+    on_epoch : callable(epoch, optimizer, stats), optional
+        Called after each epoch (checkpoints).
+
+    Returns
+    -------
+    dict with the last ``train_loss``, ``val_loss``, ``val_rms_deg`` and the ``optimizer``.
+    """
+    import torch as th
+
+    device = policy.device
+    if optimizer is None:
+        optimizer = th.optim.Adam(_actor_parameters(policy), lr=learning_rate)
+    n = len(obs)
+    if n == 0:
+        raise ValueError("no training samples")
+    n_extra = 0 if extra_obs is None else len(extra_obs)
+    f = float(extra_fraction) if n_extra else 0.0
+    bs_main = max(int(round(batch_size * (1.0 - f))), 1)
+    bs_extra = int(batch_size) - bs_main if n_extra else 0
+    n_batches = max(n // bs_main, 1)
+    total = max(int(n_epochs) * n_batches, 1)
+    obs_t = th.as_tensor(obs, dtype=th.float32, device=device)
+    act_t = th.as_tensor(act, dtype=th.float32, device=device)
+    if n_extra:
+        eobs_t = th.as_tensor(extra_obs, dtype=th.float32, device=device)
+        eact_t = th.as_tensor(extra_act, dtype=th.float32, device=device)
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=total, initial=start_epoch * n_batches, desc=log_prefix, unit="batch")
+    stats: dict[str, Any] = {}
+    policy.set_training_mode(True)
+    try:
+        for epoch in range(start_epoch, int(n_epochs)):
+            perm = rng.permutation(n)
+            run_loss = 0.0
+            for b in range(n_batches):
+                step = epoch * n_batches + b
+                lr = learning_rate_final + 0.5 * (learning_rate - learning_rate_final) * (
+                    1.0 + math.cos(math.pi * step / total))
+                for g in optimizer.param_groups:
+                    g["lr"] = lr
+                idx = perm[b * bs_main:(b + 1) * bs_main]
+                o, a = obs_t[idx], act_t[idx]
+                if bs_extra:
+                    j = rng.integers(0, n_extra, size=bs_extra)
+                    o = th.cat([o, eobs_t[j]])
+                    a = th.cat([a, eact_t[j]])
+                loss = th.mean((mean_actions(policy, o) - a) ** 2)
+                optimizer.zero_grad()
+                loss.backward()
+                optimizer.step()
+                run_loss += float(loss.detach())
+                if bar is not None:
+                    bar.update(1)
+            stats = {"epoch": epoch, "train_loss": run_loss / n_batches, "learning_rate": lr}
+            if val_obs is not None and len(val_obs):
+                with th.no_grad():
+                    policy.set_training_mode(False)
+                    vo = th.as_tensor(val_obs, dtype=th.float32, device=device)
+                    va = th.as_tensor(val_act, dtype=th.float32, device=device)
+                    vl = float(th.mean((mean_actions(policy, vo) - va) ** 2))
+                    policy.set_training_mode(True)
+                stats["val_loss"] = vl
+                # action 1 = 90°: RMS error of the thrust angle in degrees
+                stats["val_rms_deg"] = 90.0 * math.sqrt(vl)
+            if logger is not None:
+                for k, v in stats.items():
+                    if k != "epoch":
+                        logger.record(f"{log_prefix}/{k}", v)
+                logger.dump(step_offset + epoch + 1)
+            if bar is not None:
+                bar.set_postfix({k: f"{v:.3g}" for k, v in stats.items() if k != "epoch"})
+            if on_epoch is not None:
+                on_epoch(epoch, optimizer, stats)
+    finally:
+        if bar is not None:
+            bar.close()
+        policy.set_training_mode(False)
+    stats["optimizer"] = optimizer
+    return stats
+
+
+def _split_by_trajectory(ds, val_fraction: float, rng: np.random.Generator):
+    tid = ds.arrays["traj_index"]
+    ids = np.unique(tid)
+    n_val = int(round(val_fraction * len(ids))) if len(ids) > 1 else 0
+    val_ids = rng.choice(ids, size=n_val, replace=False) if n_val else np.zeros(0, int)
+    is_val = np.isin(tid, val_ids)
+    return ~is_val, is_val
+
+
+# ----------------------------------------------------------------------------- run dirs
+
+
+def _new_run_dir(log_folder: str, mode: str, env_id: str) -> Path:
+    parent = Path(log_folder) / "imitation"
+    parent.mkdir(parents=True, exist_ok=True)
+    k = 1
+    pat = re.compile(rf"^{mode}_{re.escape(env_id)}_(\d+)$")
+    for d in parent.iterdir():
+        m = pat.match(d.name)
+        if m:
+            k = max(k, int(m.group(1)) + 1)
+    return parent / f"{mode}_{env_id}_{k}"
+
+
+def _logger(run_dir: Path, tensorboard: bool):
+    from stable_baselines3.common.logger import configure
+
+    fmts = ["csv"] + (["tensorboard"] if tensorboard else [])
+    return configure(str(run_dir / "tb"), fmts)
+
+
+def _save_final(model, run_dir: Path) -> Path:
+    path = run_dir / "model.zip"
+    model.save(path)
+    return path
+
+
+def _rng_state(rng: np.random.Generator) -> dict:
+    return rng.bit_generator.state
+
+
+# ----------------------------------------------------------------------------- BC
+
+
+def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False):
+    """Behaviour cloning on ``run["dataset"]``; writes checkpoints and ``model.zip``.
+
+    Returns the PPO model whose policy holds the cloned weights.
+    """
+    import torch as th
+
+    from agents.dataset import load_dataset
+
+    ds = load_dataset(run["dataset"])
+    if ds.meta["env_id"] != run["env"]:
+        raise ValueError(f"dataset {run['dataset']} is for {ds.meta['env_id']!r}, not "
+                         f"{run['env']!r}")
+    env_kwargs = ds.meta.get("env_kwargs") or {}
+    bc = hp["bc"]
+    seed = int(run["seed"])
+    th.manual_seed(seed)
+    model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed, run["device"])
+    policy = model.policy
+    rng = np.random.default_rng(seed)
+    train_mask, val_mask = _split_by_trajectory(ds, float(bc.get("val_fraction", 0.0)), rng)
+    ckdir = run_dir / "checkpoints"
+    ckdir.mkdir(parents=True, exist_ok=True)
+    optimizer = None
+    start = 0
+    if resume:
+        found = sorted((int(m.group(1)), f) for f in ckdir.iterdir()
+                       if (m := _BC_CKPT.match(f.name)))
+        if not found:
+            raise FileNotFoundError(f"no BC checkpoint bc_epoch_<k>.pt in {ckdir}; start again "
+                                    "without --resume")
+        epoch, path = found[-1]
+        state = th.load(path, weights_only=False)
+        policy.load_state_dict(state["policy"])
+        optimizer = th.optim.Adam(_actor_parameters(policy), lr=float(bc["learning_rate"]))
+        optimizer.load_state_dict(state["optimizer"])
+        rng.bit_generator.state = state["rng"]
+        start = epoch + 1
+        print(f"Resuming BC {run_dir} after epoch {epoch} of {bc['n_epochs']}")
+    every = max(int(bc.get("checkpoint_every", 5)), 1)
+
+    def on_epoch(epoch, opt, stats):
+        if (epoch + 1) % every == 0 or epoch + 1 == int(bc["n_epochs"]):
+            tmp = ckdir / f"bc_epoch_{epoch}.pt.tmp"
+            th.save({"policy": policy.state_dict(), "optimizer": opt.state_dict(),
+                     "rng": _rng_state(rng), "stats": stats}, tmp)
+            os.replace(tmp, ckdir / f"bc_epoch_{epoch}.pt")
+
+    logger = _logger(run_dir, not run.get("no_tensorboard"))
+    obs, act = ds.observations, ds.actions
+    t0 = time.perf_counter()
+    stats = fit_policy(policy, obs[train_mask], act[train_mask], n_epochs=int(bc["n_epochs"]),
+                       batch_size=int(bc["batch_size"]),
+                       learning_rate=float(bc["learning_rate"]),
+                       learning_rate_final=float(bc.get("learning_rate_final",
+                                                        bc["learning_rate"])),
+                       rng=rng, val_obs=obs[val_mask], val_act=act[val_mask],
+                       optimizer=optimizer, start_epoch=start, on_epoch=on_epoch, logger=logger,
+                       progress=not run.get("no_progress"), log_prefix="bc")
+    wall = time.perf_counter() - t0
+    logger.close()
+    path = _save_final(model, run_dir)
+    summary = {k: v for k, v in stats.items() if k != "optimizer"}
+    summary.update(train_wall_s_this_session=wall, n_samples=int(train_mask.sum()),
+                   n_val_samples=int(val_mask.sum()))
+    (run_dir / "bc_summary.yml").write_text(yaml.safe_dump(summary))
+    print(f"BC done: {summary}. Model: {path}")
+    return model
+
+
+# ----------------------------------------------------------------------------- DAgger
+
+
+def rollout_policy(model, env_id: str, env_kwargs: dict[str, Any] | None, n_episodes: int,
+                   seed: int) -> list[dict[str, Any]]:
+    """Fly the policy's deterministic actions from ``n_episodes`` dispersed starts.
+
+    Sub-env i is reset with seed ``seed + i``. Returns one dict per episode: ``obs`` (T, n_obs),
+    ``state_nd`` (T, 5), ``t_s`` (T,) — the states at which the policy acted — and the outcome
+    ``success``, ``fuel_kg``, ``touchdown_speed_m_s``.
+    """
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+
+    venv = gym.make_vec(env_id, num_envs=n_episodes, vectorization_mode="vector_entry_point",
+                        **(env_kwargs or {}))
+    core = venv.unwrapped if hasattr(venv, "unwrapped") else venv
+    eps: list[dict[str, list]] = [{"obs": [], "state_nd": [], "t_s": []}
+                                  for _ in range(n_episodes)]
+    out: list[dict[str, Any]] = [{} for _ in range(n_episodes)]
+    try:
+        obs, _ = venv.reset(seed=seed)
+        active = np.ones(n_episodes, dtype=bool)
+        limit = 100_000
+        while active.any() and limit > 0:
+            limit -= 1
+            states = np.array(core.state_nd, copy=True)
+            ts = np.array(core.t_s, dtype=np.float64, copy=True)
+            for i in np.flatnonzero(active):
+                eps[i]["obs"].append(obs[i].copy())
+                eps[i]["state_nd"].append(states[i])
+                eps[i]["t_s"].append(ts[i])
+            action, _ = model.predict(obs, deterministic=True)
+            obs, _, term, trunc, info = venv.step(np.asarray(action, dtype=np.float32))
+            ended = (np.asarray(term) | np.asarray(trunc)) & active
+            for i in np.flatnonzero(ended):
+                sp = np.asarray(info["touchdown_speed_m_s"], dtype=np.float64)[i]
+                m = info.get("_touchdown_speed_m_s")
+                out[i] = {"success": bool(np.asarray(info["is_success"])[i]),
+                          "fuel_kg": float(np.asarray(info["fuel_used_kg"])[i]),
+                          "touchdown_speed_m_s": float(sp) if m is None or bool(m[i])
+                          else float("nan")}
+            active &= ~ended
+    finally:
+        venv.close()
+    for i in range(n_episodes):
+        out[i].update(obs=np.asarray(eps[i]["obs"], dtype=np.float32),
+                      state_nd=np.asarray(eps[i]["state_nd"], dtype=np.float64),
+                      t_s=np.asarray(eps[i]["t_s"], dtype=np.float64))
+    return out
+
+
+def _label_chunk(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
+    """Label the chosen steps of some episodes with the closed-loop expert (worker process)."""
+    import warnings
+
+    from agents.evaluate import planar_state_si
+    from lunar_env import get_scenario
+    from lunar_env.envs.soft_landing import action_from_thrust_angle
+    from optimizers.pontryagin import PontryaginExpert
+
+    sc = get_scenario(job["scenario"])
+    dt_s = float(job["dt_s"])
+    res = []
+    for ep in job["episodes"]:
+        expert = PontryaginExpert(sc)
+        idx = ep["label_idx"]
+        si = planar_state_si(sc, ep["state_nd"][idx])
+        phi = np.empty(len(idx))
+        status = []
+        for j, k in enumerate(idx):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                p = float(expert(si[j], t_s=float(ep["t_s"][k])))
+            st = expert.last_status[0]
+            # decision: label with the new plan's angle at mid-step (the action is held for
+            # dt_s), as the optimal-trajectory samples are labelled
+            mem = getattr(expert, "_memory", {}).get(0)
+            if st == "optimal" and mem is not None:
+                p = float(mem[0].thrust_angle_at(0.5 * dt_s))
+            phi[j] = p
+            status.append(st)
+        res.append({"obs": ep["obs"][idx],
+                    "actions": np.asarray(action_from_thrust_angle(phi),
+                                          dtype=np.float32).reshape(-1, 1),
+                    "phi_rad": phi, "status": np.array(status)})
+    return res
+
+
+def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: float,
+                   label_every: int, dense_tail_s: float, n_workers: int = 1,
+                   progress: bool = True, min_speed_m_s: float = 3.0,
+                   velocity_ref_m_s: float | None = None) -> dict[str, np.ndarray]:
+    """Expert labels for the visited states of policy roll-outs.
+
+    Every ``label_every``-th step of each episode and every step in its last ``dense_tail_s``
+    seconds (where landing accuracy is decided) is labelled, in time order per episode so the
+    expert re-plans warm-started from its previous plan. States slower than ``min_speed_m_s``
+    relative to the surface are not labelled (decision): the env cuts the engine within a step
+    there, so the action hardly matters, and from a near-hover high above the ground no landing
+    exists — the expert then spends seconds to tens of seconds failing to find one (measured:
+    40 s for one such state on the loaded machine) before returning its braking fallback.
+
+    Returns
+    -------
+    dict with ``obs`` (L, n_obs) float32, ``actions`` (L, 1) float32, ``phi_rad`` (L,),
+    ``status`` (L,) str (the expert's per-label status).
+    """
+    jobs_eps = []
+    for ep in episodes:
+        t = ep["t_s"]
+        if len(t) == 0:
+            continue
+        k = np.arange(len(t))
+        sel = (k % max(int(label_every), 1) == 0) | (t >= t[-1] - float(dense_tail_s))
+        if velocity_ref_m_s is not None:
+            x = ep["state_nd"]
+            speed = np.hypot(x[:, 1], x[:, 0] * x[:, 3]) * float(velocity_ref_m_s)
+            sel &= speed >= float(min_speed_m_s)
+        jobs_eps.append({"obs": ep["obs"], "state_nd": ep["state_nd"], "t_s": t,
+                         "label_idx": np.flatnonzero(sel)})
+    n_workers = max(1, min(int(n_workers), len(jobs_eps)))
+    chunks = [jobs_eps[i::n_workers] for i in range(n_workers)]
+    jobs = [{"scenario": scenario_name, "dt_s": dt_s, "episodes": c} for c in chunks if c]
+    n_labels = sum(len(e["label_idx"]) for e in jobs_eps)
+    if progress:
+        print(f"Labelling {n_labels} visited states of {len(jobs_eps)} episodes with the "
+              f"closed-loop expert ({n_workers} process(es))...", flush=True)
+    if n_workers == 1:
+        parts = [r for j in jobs for r in _label_chunk(j)]
+    else:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("spawn")) as ex:
+            parts = [r for rs in ex.map(_label_chunk, jobs) for r in rs]
+    if not parts:
+        return {"obs": np.zeros((0, 5), np.float32), "actions": np.zeros((0, 1), np.float32),
+                "phi_rad": np.zeros(0), "status": np.zeros(0, dtype="<U12")}
+    return {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "actions", "phi_rad",
+                                                                "status")}
+
+
+def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False):
+    """DAgger with the closed-loop expert; returns the final PPO model (also ``model.zip``)."""
+    import torch as th
+    from stable_baselines3 import PPO
+
+    from agents.dataset import load_dataset
+
+    ds = load_dataset(run["dataset"])
+    if ds.meta["env_id"] != run["env"]:
+        raise ValueError(f"dataset {run['dataset']} is for {ds.meta['env_id']!r}, not "
+                         f"{run['env']!r}")
+    env_kwargs = ds.meta.get("env_kwargs") or {}
+    dg = hp["dagger"]
+    seed = int(run["seed"])
+    th.manual_seed(seed)
+    ckdir = run_dir / "checkpoints"
+    ckdir.mkdir(parents=True, exist_ok=True)
+    lbdir = run_dir / "labels"
+    lbdir.mkdir(parents=True, exist_ok=True)
+    done = sorted((int(m.group(1)), f) for f in ckdir.iterdir() if (m := _DG_CKPT.match(f.name)))
+    if resume and done:
+        it0, path = done[-1]
+        model = PPO.load(path, device=run["device"])
+        start = it0 + 1
+        print(f"Resuming DAgger {run_dir} after iteration {it0} of {dg['n_iterations']}")
+    else:
+        if resume:
+            print(f"No DAgger iteration finished in {run_dir}: starting from the initial policy")
+        start = 0
+        if run.get("init"):
+            init = load_policy_model(run["init"], device=run["device"])
+            model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed, run["device"])
+            try:
+                model.policy.load_state_dict(init.policy.state_dict())
+            except RuntimeError as exc:
+                raise ValueError(f"--init {run['init']}: its policy does not match "
+                                 f"policy_kwargs {hp['policy_kwargs']} ({exc})") from None
+        else:
+            print("No --init policy: behaviour cloning first (bc section of the config)")
+            model = train_bc(hp, dict(run, no_tensorboard=True), run_dir / "bc_init")
+    policy = model.policy
+    rng = np.random.default_rng(seed + 7919)
+    logger = _logger(run_dir, not run.get("no_tensorboard"))
+    dt_s = float(ds.meta["dt_s"])
+    sc_name = ds.meta["scenario"]
+    history_file = run_dir / "dagger_history.yml"
+    history = yaml.safe_load(history_file.read_text()) if history_file.exists() else []
+    history = [h for h in history if h["iteration"] < start]
+    for it in range(start, int(dg["n_iterations"])):
+        t_it = time.perf_counter()
+        lb_file = lbdir / f"iter_{it:03d}.npz"
+        if lb_file.exists():  # labels of an interrupted iteration: reuse, do not re-solve
+            with np.load(lb_file) as z:
+                lab = {k: z[k] for k in z.files}
+            roll = {k: float(lab.pop(k)) for k in list(lab) if k.startswith("rollout_")}
+            print(f"DAgger iteration {it}: reusing {len(lab['obs'])} labels from {lb_file}")
+        else:
+            ep_seed = seed + int(dg.get("seed_offset", 100000)) + it * int(dg["n_episodes"])
+            t0 = time.perf_counter()
+            eps = rollout_policy(model, run["env"], env_kwargs, int(dg["n_episodes"]), ep_seed)
+            roll = {"rollout_success_rate": float(np.mean([e["success"] for e in eps])),
+                    "rollout_fuel_mean_kg": float(np.mean([e["fuel_kg"] for e in eps])),
+                    "rollout_wall_s": time.perf_counter() - t0}
+            t0 = time.perf_counter()
+            from lunar_env import get_scenario
+
+            lab = label_episodes(eps, sc_name, dt_s, int(dg["label_every"]),
+                                 float(dg["dense_tail_s"]), int(dg.get("n_label_workers", 1)),
+                                 progress=not run.get("no_progress"),
+                                 min_speed_m_s=float(dg.get("min_label_speed_m_s", 3.0)),
+                                 velocity_ref_m_s=get_scenario(sc_name).scaling().velocity_m_s)
+            roll["label_wall_s"] = time.perf_counter() - t0
+            tmp = lb_file.with_suffix(".tmp.npz")
+            np.savez_compressed(tmp, **lab, **{k: np.array(v) for k, v in roll.items()})
+            os.replace(tmp, lb_file)
+        print(f"DAgger iteration {it}: policy roll-outs success "
+              f"{100 * roll['rollout_success_rate']:.1f} %, mean fuel "
+              f"{roll['rollout_fuel_mean_kg']:.2f} kg; {len(lab['obs'])} expert labels",
+              flush=True)
+        agg_obs, agg_act = [], []
+        for j in range(it + 1):
+            with np.load(lbdir / f"iter_{j:03d}.npz") as z:
+                agg_obs.append(z["obs"])
+                agg_act.append(z["actions"])
+        eo, ea = np.concatenate(agg_obs), np.concatenate(agg_act)
+        stats = fit_policy(policy, ds.observations, ds.actions, n_epochs=int(dg["n_epochs"]),
+                           batch_size=int(dg["batch_size"]),
+                           learning_rate=float(dg["learning_rate"]),
+                           learning_rate_final=float(dg.get("learning_rate_final",
+                                                            dg["learning_rate"])),
+                           rng=rng, extra_obs=eo, extra_act=ea,
+                           extra_fraction=float(dg["dagger_fraction"]), val_obs=eo[-len(
+                               lab["obs"]):], val_act=ea[-len(lab["obs"]):],
+                           logger=logger, progress=not run.get("no_progress"),
+                           log_prefix=f"dagger_iter{it}",
+                           step_offset=it * int(dg["n_epochs"]))
+        for k, v in roll.items():
+            logger.record(f"dagger/{k}", v)
+        logger.record("dagger/n_labels_total", len(eo))
+        logger.dump(it)
+        status, counts = np.unique(lab["status"], return_counts=True)
+        history.append({"iteration": it, **roll, "n_labels": int(len(lab["obs"])),
+                        "n_labels_total": int(len(eo)),
+                        "expert_status": {str(s): int(c) for s, c in zip(status, counts,
+                                                                          strict=True)},
+                        "train_loss": float(stats["train_loss"]),
+                        "wall_s": time.perf_counter() - t_it})
+        model.save(ckdir / f"dagger_iter_{it}.zip")
+        history_file.write_text(yaml.safe_dump(history))
+    logger.close()
+    path = _save_final(model, run_dir)
+    print(f"DAgger done ({dg['n_iterations']} iterations). Model: {path}")
+    return model
+
+
+# ----------------------------------------------------------------------------- CLI
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m agents.imitation",
+                                description="Behaviour cloning and DAgger from optimal landings.")
+    sub = p.add_subparsers(dest="mode", required=True)
+    for mode in ("bc", "dagger"):
+        s = sub.add_parser(mode, help=f"train by {mode.upper()}")
+        s.add_argument("--env", default=DEFAULT_ENV_ID)
+        s.add_argument("--dataset", default=None, help="dataset .npz (python -m agents.dataset)")
+        s.add_argument("--hyperparams-file", default=str(_HP_FILE))
+        s.add_argument("--config", default="default", help="profile: default or e.g. quick")
+        s.add_argument("--quick", action="store_true", help="same as --config quick")
+        s.add_argument("--hyperparams", "-params", nargs="+", default=[], metavar="KEY=VALUE")
+        s.add_argument("--seed", type=int, default=None)
+        s.add_argument("--log-folder", "-f", default="runs")
+        s.add_argument("--run-dir", default=None)
+        s.add_argument("--resume", default=None, metavar="RUN_DIR")
+        s.add_argument("--device", default="cpu")
+        s.add_argument("--torch-threads", type=int, default=1)
+        s.add_argument("--no-progress", action="store_true")
+        s.add_argument("--no-tensorboard", action="store_true")
+        s.add_argument("--eval-states", type=int, default=0,
+                       help="evaluate the final policy on this many dispersed states "
+                            "(agents.evaluate; 0: skip)")
+        s.add_argument("--eval-seed", type=int, default=2026)
+        if mode == "dagger":
+            s.add_argument("--init", default=None,
+                           help="initial policy (BC run dir or PPO zip); default: BC first")
+    e = sub.add_parser("evaluate", help="compare policies with agents.evaluate")
+    e.add_argument("--env", default=DEFAULT_ENV_ID)
+    e.add_argument("--model", action="append", default=[], metavar="NAME=PATH",
+                   help="policy name and run dir / zip (repeatable)")
+    e.add_argument("--n-states", type=int, default=1000)
+    e.add_argument("--seed", type=int, default=2026)
+    e.add_argument("--expert-states", type=int, default=20)
+    e.add_argument("--no-open-loop", action="store_true")
+    e.add_argument("--out", default="results/imitation")
+    e.add_argument("--json", default=None)
+    return p
+
+
+def _resolve(args) -> tuple[dict[str, Any], dict[str, Any]]:
+    from agents.hyperparams import apply_overrides, load_hyperparams, parse_override
+
+    profile = "quick" if args.quick else args.config
+    hp = load_hyperparams(args.hyperparams_file, args.env, profile)
+    hp = apply_overrides(hp, dict(parse_override(t) for t in args.hyperparams))
+    for key in ("policy_kwargs", "bc") + (("dagger",) if args.mode == "dagger" else ()):
+        if key not in hp:
+            raise ValueError(f"{args.hyperparams_file}: entry {args.env!r} lacks {key!r}")
+    run = {k: v for k, v in vars(args).items()}
+    run["config"] = profile
+    run["algo"] = "ppo"  # the saved model is a PPO zip (agents.evaluate / train.py read this)
+    if run["seed"] is None:
+        run["seed"] = int(np.random.default_rng().integers(0, 2**31 - 1))
+    return hp, run
+
+
+def _evaluate_cli(args) -> int:
+    from agents.evaluate import SB3Policy, compare, markdown_table, write_report
+
+    policies = []
+    env_kwargs = None
+    for item in args.model:
+        if "=" not in item:
+            raise SystemExit(f"--model {item!r}: expected NAME=PATH")
+        name, path = item.split("=", 1)
+        pol = SB3Policy.from_path(path, name=name)
+        policies.append(pol)
+        cfg = Path(path) / "config.yml" if Path(path).is_dir() else Path(path).parent / "config.yml"
+        if env_kwargs is None and cfg.exists():
+            env_kwargs = (yaml.safe_load(cfg.read_text()) or {}).get("env_kwargs")
+    report = compare(args.env, policies, n_states=args.n_states, seed=args.seed,
+                     env_kwargs=env_kwargs, open_loop=not args.no_open_loop,
+                     n_expert_states=args.expert_states)
+    paths = write_report(report, args.out)
+    if args.json:
+        from agents.evaluate import _json_report
+
+        Path(args.json).write_text(json.dumps(_json_report(report), indent=1))
+    print()
+    print(markdown_table(report))
+    print()
+    print("Written: " + ", ".join(str(p) for p in paths.values()))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command-line entry point (``python -m agents.imitation``)."""
+    import torch as th
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.mode == "evaluate":
+        return _evaluate_cli(args)
+    th.set_num_threads(max(int(args.torch_threads), 1))
+    argv_list = list(sys.argv[1:] if argv is None else argv)
+    if args.resume:
+        run_dir = Path(args.resume)
+        if not (run_dir / "args.yml").exists():
+            parser.error(f"--resume {run_dir}: not a run directory (args.yml missing)")
+        run = yaml.safe_load((run_dir / "args.yml").read_text())
+        hp = yaml.safe_load((run_dir / "config.yml").read_text())
+        if run["mode"] != args.mode:
+            parser.error(f"--resume {run_dir}: it is a {run['mode']} run, not {args.mode}")
+        run["no_progress"] = args.no_progress
+        with (run_dir / "command.txt").open("a") as fh:
+            fh.write(shlex.join([sys.executable, "-m", "agents.imitation", *argv_list]) + "\n")
+        resume = True
+    else:
+        if args.dataset is None:
+            parser.error("--dataset is required (make one with python -m agents.dataset)")
+        hp, run = _resolve(args)
+        run_dir = Path(args.run_dir) if args.run_dir else _new_run_dir(args.log_folder,
+                                                                       args.mode, args.env)
+        if run_dir.exists() and any(run_dir.iterdir()):
+            parser.error(f"run directory {run_dir} exists and is not empty; use --resume")
+        run_dir.mkdir(parents=True, exist_ok=True)
+        run["run_dir"] = str(run_dir)
+        from agents.dataset import load_dataset
+
+        hp["env_kwargs"] = load_dataset(args.dataset).meta.get("env_kwargs") or {}
+        (run_dir / "config.yml").write_text(yaml.safe_dump(hp, sort_keys=True))
+        (run_dir / "args.yml").write_text(yaml.safe_dump(run, sort_keys=True))
+        (run_dir / "command.txt").write_text(
+            shlex.join([sys.executable, "-m", "agents.imitation", *argv_list]) + "\n")
+        resume = False
+    print(f"Run directory: {run_dir}  (mode={run['mode']}, env={run['env']}, "
+          f"config={run['config']}, seed={run['seed']})")
+    if run["mode"] == "bc":
+        train_bc(hp, run, run_dir, resume=resume)
+    else:
+        train_dagger(hp, run, run_dir, resume=resume)
+    n_eval = int(run.get("eval_states") or 0)
+    if n_eval > 0:
+        from agents.evaluate import evaluate_run
+
+        evaluate_run(run_dir, n_states=n_eval, seed=int(run.get("eval_seed", 2026)))
+    return 0
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("PYTHONUNBUFFERED", "1")
+    raise SystemExit(main())
