@@ -27,6 +27,10 @@ def test_quick_reproduction_json_structure(tmp_path):
     # the serial result is the converged optimum of the same problem (dense LG collocation)
     dense = mea["dense_collocation"]
     assert abs(dense["serial_minus_reference_tf_s"]) < 0.01
+    # ... and of the indirect (Pontryagin) solution, an independent method
+    pmp = mea["pontryagin"]
+    assert pmp["success"] and abs(pmp["serial_minus_pontryagin_tf_s"]) < 0.01
+    assert pmp["max_abs_u_m_s"] < 110 and pmp["max_abs_w_m_s"] < 110
     # fuel is the constant mass flow times tf
     assert math.isclose(nom["fuel_kg"], 1500 / (300 * 9.8) * nom["tf_s"], rel_tol=1e-12)
     assert len(nom["gpm"]["alpha_deg"]) == 6
