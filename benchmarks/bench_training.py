@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 ENV_ID = "LunarSoftLanding-v0"
 
 
-def _hp(quick: bool, n_envs: int | None):
+def _hp(n_envs: int | None):
     from agents.hyperparams import default_hyperparams_path, load_hyperparams, resolve_algo_kwargs
 
     hp = load_hyperparams(default_hyperparams_path("ppo"), ENV_ID)
@@ -86,7 +86,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
 
-    import gymnasium as gym
     import torch
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import SubprocVecEnv
@@ -96,19 +95,23 @@ def main(argv: list[str] | None = None) -> int:
 
     torch.set_num_threads(1)
     n_envs = args.n_envs or (8 if args.quick else None)
-    hp, kwargs = _hp(args.quick, n_envs)
+    hp, kwargs = _hp(n_envs)
     n_envs = hp["n_envs"]
     if args.quick:
         kwargs.update(n_steps=128, batch_size=256, n_epochs=2)
     n_timesteps = args.n_timesteps or (4 if args.quick else 20) * kwargs["n_steps"] * n_envs
-    print(f"PPO on {ENV_ID}: {n_envs} envs, n_steps={kwargs['n_steps']}, "
+    print(f"PPO on {ENV_ID} {hp.get('env_kwargs') or ''}: {n_envs} envs, "
+          f"n_steps={kwargs['n_steps']}, "
           f"n_epochs={kwargs['n_epochs']}, batch_size={kwargs['batch_size']}, "
           f"{n_timesteps} timed steps (after one warm-up rollout)")
-    native = _time_ppo(make_sb3_vec_env(ENV_ID, n_envs, seed=args.seed), kwargs, n_timesteps,
-                       args.seed)
+    env_kwargs = dict(hp.get("env_kwargs") or {})
+    native = _time_ppo(make_sb3_vec_env(ENV_ID, n_envs, seed=args.seed, **env_kwargs), kwargs,
+                       n_timesteps, args.seed)
     print(f"  native batched vector env : {native['steps_per_s']:8.0f} steps/s "
           f"(rollout only {native['rollout_steps_per_s']:8.0f} steps/s)")
-    sub = _time_ppo(make_vec_env(lambda: gym.make(ENV_ID), n_envs=n_envs, seed=args.seed,
+    # "lunar_env:" makes each subprocess import (and register) the package
+    sub = _time_ppo(make_vec_env(f"lunar_env:{ENV_ID}", n_envs=n_envs, seed=args.seed,
+                                 env_kwargs=env_kwargs,
                                  vec_env_cls=SubprocVecEnv,
                                  vec_env_kwargs={"start_method": "forkserver"}),
                     kwargs, n_timesteps, args.seed)
@@ -117,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     ratio = native["steps_per_s"] / sub["steps_per_s"]
     ratio_roll = native["rollout_steps_per_s"] / sub["rollout_steps_per_s"]
     print(f"  ratio native / subproc    : {ratio:8.2f}x training, {ratio_roll:.2f}x rollout")
-    out = {"env_id": ENV_ID, "n_envs": n_envs, "n_timesteps": n_timesteps,
+    out = {"env_id": ENV_ID, "env_kwargs": env_kwargs, "n_envs": n_envs, "n_timesteps": n_timesteps,
            "ppo": {k: kwargs[k] for k in ("n_steps", "batch_size", "n_epochs")},
            "native": native, "subproc": sub, "ratio_training": ratio,
            "ratio_rollout": ratio_roll, "quick": bool(args.quick),
