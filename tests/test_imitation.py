@@ -1,0 +1,143 @@
+"""Imitation from optimal trajectories: dataset format and resume, BC into SB3 PPO, DAgger,
+evaluation — the quick end-to-end version of ``agents.dataset`` / ``agents.imitation``."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from agents import dataset as dsm  # noqa: E402
+from agents import imitation as im  # noqa: E402
+
+ENV_ID = "LunarSoftLanding-v0"
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ds") / "small.npz"
+    ds = dsm.generate(out, n=6, seed=3, n_workers=1, shard_size=3, progress=False)
+    assert ds is not None
+    return out, ds
+
+
+def test_dataset_samples_are_certified_and_in_env_spaces(small_dataset):
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+
+    path, ds = small_dataset
+    a = ds.arrays
+    assert ds.n_trajectories == 6 and a["certified"].all()
+    assert np.all(a["terminal_error_speed_m_s"] < 1e-3)
+    assert np.all(a["replay_success"])
+    # the labels replayed open-loop in the env cost the optimum's fuel (to 0.05 kg)
+    assert np.all(np.abs(a["replay_fuel_gap_kg"]) < 0.05)
+    env = gym.make(ENV_ID)
+    assert all(env.observation_space.contains(o) for o in ds.observations[::50])
+    assert all(env.action_space.contains(x) for x in ds.actions[::50])
+    # sample 0 of each trajectory is exactly the env's first observation from that state
+    for i in range(ds.n_trajectories):
+        obs0, _ = env.reset(options={"state_si": a["initial_state_si"][i]})
+        first = np.flatnonzero(a["traj_index"] == i)[0]
+        np.testing.assert_allclose(ds.observations[first], obs0, rtol=1e-6, atol=1e-6)
+    # samples per trajectory: one per env step before tf
+    for i in range(ds.n_trajectories):
+        k = int(np.sum(a["traj_index"] == i))
+        assert k == int(np.ceil(a["tf_s"][i] / ds.meta["dt_s"]))
+    env.close()
+
+
+def test_dataset_round_trip_and_version_check(small_dataset, tmp_path):
+    path, ds = small_dataset
+    again = dsm.load_dataset(path)
+    assert again.meta["format_version"] == dsm.FORMAT_VERSION
+    assert again.meta["scenario"] == "zhu2007" and again.meta["env_id"] == ENV_ID
+    assert again.meta["solver"]["name"] == "optimizers.pontryagin.solve_many"
+    for k, v in ds.arrays.items():
+        np.testing.assert_array_equal(again.arrays[k], v)
+    # re-save and reload: identical
+    p2 = dsm.save_dataset(tmp_path / "copy.npz", again.meta, again.arrays)
+    np.testing.assert_array_equal(dsm.load_dataset(p2).actions, ds.actions)
+    # another format version is refused with a clear message
+    meta = dict(again.meta)
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, meta=np.array(json.dumps(dict(meta, format_version=999))), **again.arrays)
+    with pytest.raises(ValueError, match="format_version"):
+        dsm.load_dataset(bad)
+    np.savez(tmp_path / "nometa.npz", x=np.zeros(3))
+    with pytest.raises(ValueError, match="meta"):
+        dsm.load_dataset(tmp_path / "nometa.npz")
+
+
+def test_dataset_resume_skips_finished_shards(tmp_path):
+    out = tmp_path / "r.npz"
+    shard0 = tmp_path / "r.npz.shards" / "shard_00000.npz"
+    assert dsm.generate(out, n=4, seed=5, n_workers=1, shard_size=2, progress=False,
+                        max_shards=1) is None  # "interrupted" after one shard
+    assert shard0.exists() and not out.exists()
+    stat0 = shard0.stat()
+    ds = dsm.generate(out, n=4, seed=5, n_workers=1, shard_size=2, progress=False)
+    assert ds is not None and ds.n_trajectories == 4 and ds.arrays["certified"].all()
+    st = shard0.stat()
+    assert (st.st_mtime_ns, st.st_ino) == (stat0.st_mtime_ns, stat0.st_ino)  # not redone
+    timing = json.loads((tmp_path / "r.npz.shards" / "timing.json").read_text())
+    assert [t["new_shards"] for t in timing] == [1, 1]
+    # other settings on the same shard directory are refused
+    with pytest.raises(ValueError, match="other settings"):
+        dsm.generate(out, n=4, seed=6, n_workers=1, shard_size=2, progress=False)
+
+
+def test_bc_dagger_end_to_end(small_dataset, tmp_path):
+    import torch as th
+    from stable_baselines3 import PPO
+
+    from agents.evaluate import SB3Policy, compare
+
+    path, ds = small_dataset
+    bc_dir = tmp_path / "bc"
+    assert im.main(["bc", "--quick", "--dataset", str(path), "--run-dir", str(bc_dir),
+                    "--seed", "0", "--no-progress", "--no-tensorboard",
+                    "--hyperparams", "bc.n_epochs=3"]) == 0
+    # the cloned policy is a PPO model that SB3 loads, with the cloned weights
+    model = PPO.load(bc_dir / "model.zip")
+    ck = th.load(bc_dir / "checkpoints" / "bc_epoch_2.pt", weights_only=False)
+    for k, v in ck["policy"].items():
+        np.testing.assert_array_equal(model.policy.state_dict()[k].numpy(), v.numpy())
+    pred, _ = model.predict(ds.observations[:500], deterministic=True)
+    err_bc = float(np.sqrt(np.mean((pred - ds.actions[:500]) ** 2)))
+    fresh = im.build_model(ENV_ID, {}, {"net_arch": {"pi": [64, 64], "vf": [64, 64]},
+                                        "activation_fn": "tanh"}, seed=0)
+    p0, _ = fresh.predict(ds.observations[:500], deterministic=True)
+    err0 = float(np.sqrt(np.mean((p0 - ds.actions[:500]) ** 2)))
+    assert err_bc < 0.5 * err0, (err_bc, err0)
+    # resume: one more epoch continues from the last checkpoint
+    import yaml
+
+    cfg = yaml.safe_load((bc_dir / "config.yml").read_text())
+    cfg["bc"]["n_epochs"] = 4
+    (bc_dir / "config.yml").write_text(yaml.safe_dump(cfg))
+    assert im.main(["bc", "--resume", str(bc_dir), "--no-progress"]) == 0
+    assert (bc_dir / "checkpoints" / "bc_epoch_3.pt").exists()
+
+    dg_dir = tmp_path / "dagger"
+    assert im.main(["dagger", "--quick", "--dataset", str(path), "--init", str(bc_dir),
+                    "--run-dir", str(dg_dir), "--seed", "0", "--no-progress",
+                    "--no-tensorboard", "--hyperparams", "dagger.n_episodes=2",
+                    "dagger.label_every=100", "dagger.dense_tail_s=0"]) == 0
+    hist = yaml.safe_load((dg_dir / "dagger_history.yml").read_text())
+    assert len(hist) == 1 and hist[0]["n_labels"] > 0
+    with np.load(dg_dir / "labels" / "iter_000.npz") as z:
+        assert z["obs"].shape[1] == 5 and np.all(np.abs(z["actions"]) <= 1.0)
+    # DAgger resume with everything done: loads the last iteration, trains nothing new
+    assert im.main(["dagger", "--resume", str(dg_dir), "--no-progress"]) == 0
+    model = PPO.load(dg_dir / "model.zip")
+    # the same evaluation as the RL policies, on a few states
+    rep = compare(ENV_ID, [SB3Policy(model, None, name="DAgger")], n_states=3, seed=2026,
+                  open_loop=False, n_expert_states=0, progress=False)
+    row = rep["rows"][0]
+    assert row["policy"] == "DAgger" and row["n_cases"] == 3
+    assert np.isfinite(row["fuel_mean_kg"]) and row["us_per_decision"] > 0
