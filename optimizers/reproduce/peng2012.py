@@ -158,9 +158,13 @@ def _plots(result, out: str, ocp: PinpointOCP) -> list[str]:
     import matplotlib.pyplot as plt
 
     os.makedirs(out, exist_ok=True)
-    tr = result.trajectory
-    st = tr.states
-    t = tr.t_s
+    # a dense rendering of the same control (the shooting grid has only 36 nodes)
+    ssol = result.extra["shooting_solution"]
+    prop = ocp.propagate(ssol.t_nodes_nd, ssol.controls, 2000)
+    st = ocp.describe_states(prop.states[0])
+    t = prop.times[0] * ocp.scaling.time_s
+    uu = ssol.control_law()(prop.times)[0]
+    controls = {"alpha_rad": uu[:, 0], "beta_rad": uu[:, 1]}
     paths = []
     tgt = ocp.scenario.target
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
@@ -202,8 +206,8 @@ def _plots(result, out: str, ocp: PinpointOCP) -> list[str]:
     paths.append(p)
 
     fig, ax = plt.subplots(figsize=(7, 4.2))
-    ax.plot(t, np.degrees(tr.controls["alpha_rad"]), label="α (elevation)")
-    ax.plot(t, np.degrees(tr.controls["beta_rad"]) - 180.0, label="β − 180°")
+    ax.plot(t, np.degrees(controls["alpha_rad"]), label="α (elevation)")
+    ax.plot(t, np.degrees(controls["beta_rad"]) - 180.0, label="β − 180°")
     g = result.extra.get("gpm")
     if g is not None:
         ax.plot(g["t_s"], np.degrees(g["alpha_rad"]), "o", label="α GPM (N = 6)")
