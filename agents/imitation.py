@@ -655,27 +655,54 @@ def _resolve(args) -> tuple[dict[str, Any], dict[str, Any]]:
     return hp, run
 
 
-def _evaluate_cli(args) -> int:
-    from agents.evaluate import SB3Policy, compare, markdown_table, write_report
+def _run_env_kwargs(path: str | Path) -> dict[str, Any]:
+    p = Path(path)
+    run_dir = p if p.is_dir() else (p.parent.parent if p.parent.name == "checkpoints"
+                                    else p.parent)
+    cfg = run_dir / "config.yml"
+    if cfg.exists():
+        return dict((yaml.safe_load(cfg.read_text()) or {}).get("env_kwargs") or {})
+    return {}
 
-    policies = []
-    env_kwargs = None
+
+def _evaluate_cli(args) -> int:
+    """Compare named policies with :func:`agents.evaluate.compare`.
+
+    Policies trained with different env settings (e.g. PPO's 5 s decisions, imitation's 1 s)
+    each fly their own env configuration from the same seeded initial states (the dispersion
+    draw does not depend on the step length); one :func:`compare` call per configuration, rows
+    merged into one table. The optimiser baselines (open-loop replay, re-planning expert) run
+    with the first configuration; the open-loop replay also with every other one.
+    """
+    from agents.evaluate import SB3Policy, _json_report, compare, markdown_table, write_report
+
+    groups: dict[str, tuple[dict[str, Any], list]] = {}
     for item in args.model:
         if "=" not in item:
             raise SystemExit(f"--model {item!r}: expected NAME=PATH")
         name, path = item.split("=", 1)
-        pol = SB3Policy.from_path(path, name=name)
-        policies.append(pol)
-        cfg = Path(path) / "config.yml" if Path(path).is_dir() else Path(path).parent / "config.yml"
-        if env_kwargs is None and cfg.exists():
-            env_kwargs = (yaml.safe_load(cfg.read_text()) or {}).get("env_kwargs")
-    report = compare(args.env, policies, n_states=args.n_states, seed=args.seed,
-                     env_kwargs=env_kwargs, open_loop=not args.no_open_loop,
-                     n_expert_states=args.expert_states)
+        kw = _run_env_kwargs(path)
+        key = json.dumps(kw, sort_keys=True)
+        groups.setdefault(key, (kw, []))[1].append(SB3Policy.from_path(path, name=name))
+    if not groups:
+        groups["{}"] = ({}, [])
+    reports = []
+    for g, (kw, pols) in enumerate(groups.values()):
+        rep = compare(args.env, pols, n_states=args.n_states, seed=args.seed, env_kwargs=kw,
+                      open_loop=not args.no_open_loop,
+                      n_expert_states=args.expert_states if g == 0 else 0)
+        if len(groups) > 1:
+            tag = ", ".join(f"{k}={v}" for k, v in sorted(kw.items())) or "env defaults"
+            for row, res in zip(rep["rows"], rep["results"], strict=True):
+                row["policy"] = f"{row['policy']} [{tag}]"
+                res.name = row["policy"]
+        reports.append(rep)
+    report = dict(reports[0])
+    report["rows"] = [r for rep in reports for r in rep["rows"]]
+    report["results"] = [r for rep in reports for r in rep["results"]]
+    report["env_kwargs_groups"] = [kw for kw, _ in groups.values()]
     paths = write_report(report, args.out)
     if args.json:
-        from agents.evaluate import _json_report
-
         Path(args.json).write_text(json.dumps(_json_report(report), indent=1))
     print()
     print(markdown_table(report))
