@@ -24,10 +24,11 @@ import time
 import numpy as np
 from numba import njit, prange
 
-from lunar_env import get_scenario
-from lunar_env.integrators import MOON3D, PLANAR, PiecewisePolynomial, _planar_eom_jit, integrate
+from lunar_env import dynamics, get_scenario
+from lunar_env.integrators import MOON3D, PLANAR, PiecewisePolynomial, integrate
 
 BATCHES = (1, 64, 1024, 16384)
+_planar_eom_jit = njit(cache=True, inline="always")(dynamics.planar_eom)
 T_SPAN_S = 600.0
 
 

@@ -6,12 +6,14 @@ compiles them with numba (``cache=True``). The integrator logic therefore exists
 per-model kernels run on scalar tuples (no per-step heap arrays), which is what makes them fast.
 
 Names bound per model: ``LOAD(row) -> state tuple``, ``DERIV(y, u, p) -> dy tuple``,
+``PREP(u) -> c`` and ``DERIV_C(y, c, p) -> dy`` (the same right-hand side split into its
+control part and its state part, DERIV = DERIV_C ∘ PREP),
 ``RADIUS(y)``, ``SPEED_RATE(y, dy)`` (= V_rel · dV_rel/dt, whose upward zero crossing is a
 minimum of the speed relative to the surface), ``MASS(y)``, ``UZERO`` (zero control tuple; the
 last control channel is the throttle).
 """
 
-# ruff: noqa: F821  (LOAD, DERIV, RADIUS, SPEED_RATE, MASS, UZERO are bound per model)
+# ruff: noqa: F821  (LOAD, DERIV, PREP, DERIV_C, RADIUS, SPEED_RATE, MASS, UZERO are bound per model)
 import numpy as np
 from numba import prange
 from numba.cpython.unsafe.tuple import tuple_setitem
@@ -57,17 +59,21 @@ def rk4_step(y, t, h, breaks, coefs, i, k, burn, p):
     u0 = control_in(breaks, coefs, i, k, t, burn)
     u1 = control_in(breaks, coefs, i, k, t + 0.5 * h, burn)
     u2 = control_in(breaks, coefs, i, k, t + h, burn)
-    k1 = DERIV(y, u0, p)
+    # the control's trigonometry once per distinct value: a held control costs one sin/cos
+    c0 = PREP(u0)
+    c1 = c0 if u1 == u0 else PREP(u1)
+    c2 = c1 if u2 == u1 else PREP(u2)
+    k1 = DERIV_C(y, c0, p)
     yt = y
     for j in range(len(y)):
         yt = tuple_setitem(yt, j, y[j] + 0.5 * h * k1[j])
-    k2 = DERIV(yt, u1, p)
+    k2 = DERIV_C(yt, c1, p)
     for j in range(len(y)):
         yt = tuple_setitem(yt, j, y[j] + 0.5 * h * k2[j])
-    k3 = DERIV(yt, u1, p)
+    k3 = DERIV_C(yt, c1, p)
     for j in range(len(y)):
         yt = tuple_setitem(yt, j, y[j] + h * k3[j])
-    k4 = DERIV(yt, u2, p)
+    k4 = DERIV_C(yt, c2, p)
     out = y
     h6 = h / 6.0
     for j in range(len(y)):

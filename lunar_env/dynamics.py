@@ -88,7 +88,8 @@ from numba.extending import register_jitable
 __all__ = [
     "R", "VR", "THETA", "OMEGA", "M", "PHI", "THROTTLE", "PLANAR_STATE_NAMES",
     "X", "Y", "Z", "VX", "VY", "VZ", "M3", "ALPHA", "BETA", "THROTTLE3", "MOON3D_STATE_NAMES",
-    "PlanarParams", "Moon3DParams", "planar_eom", "moon3d_eom", "planar_rhs", "moon3d_rhs",
+    "PlanarParams", "Moon3DParams", "planar_eom", "moon3d_eom", "planar_thrust_terms",
+    "planar_eom_terms", "moon3d_thrust_terms", "moon3d_eom_terms", "planar_rhs", "moon3d_rhs",
     "planar_rhs_casadi", "moon3d_rhs_casadi", "moon3d_derived", "orbital_frame",
     "planar_energy", "planar_angular_momentum", "moon3d_jacobi",
 ]
@@ -156,19 +157,39 @@ class Moon3DParams:
 # --------------------------------------------------------------------------------------------
 
 
+# Each model is split into the part that depends on the control only (its trigonometry) and the
+# part that depends on the state. ``*_eom`` composes the two and is what every consumer calls;
+# the compiled kernels call the two halves themselves so that a control held over an RK4 step
+# costs one sin/cos, not four.
+
+
+@register_jitable(inline="always")
+def planar_thrust_terms(phi, throttle):
+    """Control part of the planar model: ``(throttle·sin φ, throttle·cos φ, throttle)``."""
+    return throttle * np.sin(phi), throttle * np.cos(phi), throttle
+
+
+@register_jitable(inline="always")
+def planar_eom_terms(r, vr, omega, m, up, brake, throttle, thrust, exhaust_velocity):
+    """State part of the planar model, given :func:`planar_thrust_terms` ``(up, brake, throttle)``.
+    """
+    accel = thrust / m
+    dr = vr
+    dvr = accel * up - 1.0 / (r * r) + r * omega * omega
+    dtheta = omega
+    domega = -(accel * brake + 2.0 * vr * omega) / r
+    dm = -thrust * throttle / exhaust_velocity
+    return dr, dvr, dtheta, domega, dm
+
+
 def planar_eom(r, vr, omega, m, phi, throttle, thrust, exhaust_velocity):
     """Right-hand side of the planar model, component-wise ([000] eq. (1)).
 
     Arguments are normalised scalars, equal-shape arrays, or CasADi symbols. θ does not appear
     on the right-hand side. Returns ``(dr, dvr, dtheta, domega, dm)``.
     """
-    accel = thrust * throttle / m
-    dr = vr
-    dvr = accel * np.sin(phi) - 1.0 / (r * r) + r * omega * omega
-    dtheta = omega
-    domega = -(accel * np.cos(phi) + 2.0 * vr * omega) / r
-    dm = -thrust * throttle / exhaust_velocity
-    return dr, dvr, dtheta, domega, dm
+    up, brake, thr = planar_thrust_terms(phi, throttle)
+    return planar_eom_terms(r, vr, omega, m, up, brake, thr, thrust, exhaust_velocity)
 
 
 # register_jitable: a plain Python function that compiled kernels may also call.
@@ -198,22 +219,26 @@ def orbital_frame(x, y, z, nx, ny, nz):
     return xr, yr, zr, xt, yt, zt, xn, yn, zn
 
 
-def moon3d_eom(x, y, z, vx, vy, vz, m, alpha, beta, throttle, thrust, exhaust_velocity,
-               spin, nx, ny, nz):
-    """Right-hand side of the rotating-Moon model in the Moon-fixed frame, component-wise.
+@register_jitable(inline="always")
+def moon3d_thrust_terms(alpha, beta, throttle):
+    """Control part of the 3D model: throttle-scaled thrust direction in the orbital frame,
+    ``(radial, along-track, cross-track, throttle)`` = throttle·(sin α, cos α cos β, cos α sin β).
+    """
+    ca = np.cos(alpha)
+    return (throttle * np.sin(alpha), throttle * ca * np.cos(beta), throttle * ca * np.sin(beta),
+            throttle)
 
-    dV/dt = F/m − r/|r|³ − 2Ω×V − Ω×(Ω×r) with Ω = spin·Ẑ and μ = 1 ([001] eq. (1)).
-    Returns ``(dx, dy, dz, dvx, dvy, dvz, dm)``.
+
+@register_jitable(inline="always")
+def moon3d_eom_terms(x, y, z, vx, vy, vz, m, e_r, e_t, e_n, throttle, thrust, exhaust_velocity,
+                     spin, nx, ny, nz):
+    """State part of the 3D model, given :func:`moon3d_thrust_terms` ``(e_r, e_t, e_n, throttle)``.
     """
     xr, yr, zr, xt, yt, zt, xn, yn, zn = orbital_frame(x, y, z, nx, ny, nz)
-    ca = np.cos(alpha)
-    sa = np.sin(alpha)
-    cb = np.cos(beta)
-    sb = np.sin(beta)
-    accel = thrust * throttle / m
-    ex = sa * xr + ca * cb * xt + ca * sb * xn
-    ey = sa * yr + ca * cb * yt + ca * sb * yn
-    ez = sa * zr + ca * cb * zt + ca * sb * zn
+    accel = thrust / m
+    ex = e_r * xr + e_t * xt + e_n * xn
+    ey = e_r * yr + e_t * yt + e_n * yn
+    ez = e_r * zr + e_t * zt + e_n * zn
     r2 = x * x + y * y + z * z
     inv_r3 = 1.0 / (r2 * np.sqrt(r2))
     spin2 = spin * spin
@@ -223,6 +248,18 @@ def moon3d_eom(x, y, z, vx, vy, vz, m, alpha, beta, throttle, thrust, exhaust_ve
     dvz = accel * ez - z * inv_r3
     dm = -thrust * throttle / exhaust_velocity
     return vx, vy, vz, dvx, dvy, dvz, dm
+
+
+def moon3d_eom(x, y, z, vx, vy, vz, m, alpha, beta, throttle, thrust, exhaust_velocity,
+               spin, nx, ny, nz):
+    """Right-hand side of the rotating-Moon model in the Moon-fixed frame, component-wise.
+
+    dV/dt = F/m − r/|r|³ − 2Ω×V − Ω×(Ω×r) with Ω = spin·Ẑ and μ = 1 ([001] eq. (1)).
+    Returns ``(dx, dy, dz, dvx, dvy, dvz, dm)``.
+    """
+    e_r, e_t, e_n, thr = moon3d_thrust_terms(alpha, beta, throttle)
+    return moon3d_eom_terms(x, y, z, vx, vy, vz, m, e_r, e_t, e_n, thr, thrust,
+                            exhaust_velocity, spin, nx, ny, nz)
 
 
 # --------------------------------------------------------------------------------------------

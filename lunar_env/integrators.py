@@ -84,7 +84,8 @@ def _instantiate(model_name: str, bindings: dict) -> tuple:
 
 
 # ---- planar bindings --------------------------------------------------------------------------
-_planar_eom_jit = njit(cache=True, inline="always")(dyn.planar_eom)
+_planar_thrust_jit = njit(cache=True, inline="always")(dyn.planar_thrust_terms)
+_planar_terms_jit = njit(cache=True, inline="always")(dyn.planar_eom_terms)
 
 
 @njit(cache=True, inline="always")
@@ -93,8 +94,18 @@ def _planar_load(row):
 
 
 @njit(cache=True, inline="always")
+def _planar_prep(u):
+    return _planar_thrust_jit(u[0], u[1])
+
+
+@njit(cache=True, inline="always")
+def _planar_deriv_c(y, c, p):
+    return _planar_terms_jit(y[0], y[1], y[3], y[4], c[0], c[1], c[2], p[0], p[1])
+
+
+@njit(cache=True, inline="always")
 def _planar_deriv(y, u, p):
-    return _planar_eom_jit(y[0], y[1], y[3], y[4], u[0], u[1], p[0], p[1])
+    return _planar_deriv_c(y, _planar_prep(u), p)
 
 
 @njit(cache=True, inline="always")
@@ -115,7 +126,8 @@ def _planar_mass(y):
 
 
 # ---- rotating-Moon bindings -------------------------------------------------------------------
-_moon3d_eom_jit = njit(cache=True, inline="always")(dyn.moon3d_eom)
+_moon3d_thrust_jit = njit(cache=True, inline="always")(dyn.moon3d_thrust_terms)
+_moon3d_terms_jit = njit(cache=True, inline="always")(dyn.moon3d_eom_terms)
 
 
 @njit(cache=True, inline="always")
@@ -124,9 +136,19 @@ def _moon3d_load(row):
 
 
 @njit(cache=True, inline="always")
+def _moon3d_prep(u):
+    return _moon3d_thrust_jit(u[0], u[1], u[2])
+
+
+@njit(cache=True, inline="always")
+def _moon3d_deriv_c(y, c, p):
+    return _moon3d_terms_jit(y[0], y[1], y[2], y[3], y[4], y[5], y[6], c[0], c[1], c[2], c[3],
+                             p[0], p[1], p[2], p[3], p[4], p[5])
+
+
+@njit(cache=True, inline="always")
 def _moon3d_deriv(y, u, p):
-    return _moon3d_eom_jit(y[0], y[1], y[2], y[3], y[4], y[5], y[6], u[0], u[1], u[2], p[0],
-                           p[1], p[2], p[3], p[4], p[5])
+    return _moon3d_deriv_c(y, _moon3d_prep(u), p)
 
 
 @njit(cache=True, inline="always")
@@ -175,13 +197,15 @@ class Model:
 
 PLANAR = Model(
     "planar", 5, 2, dyn.PLANAR_STATE_NAMES, ("phi", "throttle"), dyn.planar_rhs,
-    dict(LOAD=_planar_load, DERIV=_planar_deriv, RADIUS=_planar_radius,
-         SPEED_RATE=_planar_speed_rate, MASS=_planar_mass, UZERO=(0.0, 0.0)),
+    dict(LOAD=_planar_load, DERIV=_planar_deriv, PREP=_planar_prep, DERIV_C=_planar_deriv_c,
+         RADIUS=_planar_radius, SPEED_RATE=_planar_speed_rate, MASS=_planar_mass,
+         UZERO=(0.0, 0.0)),
 )
 MOON3D = Model(
     "moon3d", 7, 3, dyn.MOON3D_STATE_NAMES, ("alpha", "beta", "throttle"), dyn.moon3d_rhs,
-    dict(LOAD=_moon3d_load, DERIV=_moon3d_deriv, RADIUS=_moon3d_radius,
-         SPEED_RATE=_moon3d_speed_rate, MASS=_moon3d_mass, UZERO=(0.0, 0.0, 0.0)),
+    dict(LOAD=_moon3d_load, DERIV=_moon3d_deriv, PREP=_moon3d_prep, DERIV_C=_moon3d_deriv_c,
+         RADIUS=_moon3d_radius, SPEED_RATE=_moon3d_speed_rate, MASS=_moon3d_mass,
+         UZERO=(0.0, 0.0, 0.0)),
 )
 
 
