@@ -100,8 +100,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="torch intra-op threads (default 1: the env batch uses the other core)")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--no-tensorboard", action="store_true", help="do not write TensorBoard logs")
-    p.add_argument("--eval-states", type=int, default=1000,
-                   help="dispersed initial states for the final comparison (0: skip)")
+    p.add_argument("--eval-states", type=int, default=None,
+                   help="dispersed initial states for the final comparison (0: skip; "
+                        "default 1000, 16 with --quick)")
     p.add_argument("--eval-seed", type=int, default=2026,
                    help="seed of the evaluation set of initial states")
     p.add_argument("--eval-expert-states", type=int, default=None,
@@ -402,6 +403,10 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
         raise ValueError(f"n_timesteps={hp['n_timesteps']} must be >= 1")
     run = dict(vars(args))
     run["config"] = profile
+    if run["eval_states"] is None:
+        run["eval_states"] = 16 if profile == "quick" else 1000
+    if run["eval_expert_states"] is None and profile == "quick":
+        run["eval_expert_states"] = 2
     run["hyperparams_file"] = hp_file
     if run["seed"] is None:
         run["seed"] = int(np.random.default_rng().integers(0, 2**31 - 1))
