@@ -241,8 +241,8 @@ class GaussPseudospectral:
         quad = Xf - X[:, 0] - half * ca.mtimes(F, ca.DM(self.weights))  # eq. (15)
         term = ocp.terminal_residual(Xf)
         # X_0 = x0 is imposed through equal bounds at solve time (IPOPT then treats X_0 as
-        # fixed); x0 stays an NLP parameter only so that the functions can see it.
-        eq = ca.vertcat(ca.vec(colloc), quad, term) + 0.0 * ca.sum1(x0)
+        # fixed); x0 stays an (unused) NLP parameter so the solve signature is uniform.
+        eq = ca.vertcat(ca.vec(colloc), quad, term)
         ineq_parts, ineq_lo, ineq_hi = [], [], []
         for k in range(n):
             pc = ocp.path_constraints(X[:, k + 1], U[:, k])
