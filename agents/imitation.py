@@ -407,11 +407,19 @@ def _label_chunk(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
         si = planar_state_si(sc, ep["state_nd"][idx])
         phi = np.empty(len(idx))
         status = []
+        n_fallback = 0
+        n_done = len(idx)
         for j, k in enumerate(idx):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 p = float(expert(si[j], t_s=float(ep["t_s"][k])))
             st = expert.last_status[0]
+            n_fallback = n_fallback + 1 if st == "fallback" else 0
+            if n_fallback > int(job.get("max_fallbacks", 2)):
+                # decision: no landing exists from here on (the expert failed repeatedly); the
+                # rest of this episode teaches nothing and each failed re-plan costs seconds
+                n_done = j
+                break
             # decision: label with the new plan's angle at mid-step (the action is held for
             # dt_s), as the optimal-trajectory samples are labelled
             mem = getattr(expert, "_memory", {}).get(0)
@@ -419,17 +427,19 @@ def _label_chunk(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
                 p = float(mem[0].thrust_angle_at(0.5 * dt_s))
             phi[j] = p
             status.append(st)
+        idx, phi = idx[:n_done], phi[:n_done]
         res.append({"obs": ep["obs"][idx],
                     "actions": np.asarray(action_from_thrust_angle(phi),
                                           dtype=np.float32).reshape(-1, 1),
-                    "phi_rad": phi, "status": np.array(status)})
+                    "phi_rad": phi, "status": np.array(status[:n_done], dtype="<U12")})
     return res
 
 
 def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: float,
                    label_every: int, dense_tail_s: float, n_workers: int = 1,
                    progress: bool = True, min_speed_m_s: float = 3.0,
-                   velocity_ref_m_s: float | None = None) -> dict[str, np.ndarray]:
+                   velocity_ref_m_s: float | None = None,
+                   cache_dir: str | Path | None = None) -> dict[str, np.ndarray]:
     """Expert labels for the visited states of policy roll-outs.
 
     Every ``label_every``-th step of each episode and every step in its last ``dense_tail_s``
@@ -439,6 +449,10 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
     there, so the action hardly matters, and from a near-hover high above the ground no landing
     exists — the expert then spends seconds to tens of seconds failing to find one (measured:
     40 s for one such state on the loaded machine) before returning its braking fallback.
+    After more than two consecutive fallbacks an episode's remaining states are skipped too.
+
+    ``cache_dir``: each task's labels are written there (``part_<k>.npz``) as it finishes, and
+    tasks already there are not labelled again (resume within an iteration).
 
     Returns
     -------
@@ -459,20 +473,60 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
         jobs_eps.append({"obs": ep["obs"], "state_nd": ep["state_nd"], "t_s": t,
                          "label_idx": np.flatnonzero(sel)})
     n_workers = max(1, min(int(n_workers), len(jobs_eps)))
-    chunks = [jobs_eps[i::n_workers] for i in range(n_workers)]
-    jobs = [{"scenario": scenario_name, "dt_s": dt_s, "episodes": c} for c in chunks if c]
+    # one task per few episodes: the pool balances the load and the bar moves as tasks finish
+    per_task = max(1, min(4, len(jobs_eps) // (4 * n_workers) or 1))
+    jobs = [{"scenario": scenario_name, "dt_s": dt_s, "episodes": jobs_eps[i:i + per_task]}
+            for i in range(0, len(jobs_eps), per_task)]
     n_labels = sum(len(e["label_idx"]) for e in jobs_eps)
+    bar = None
     if progress:
-        print(f"Labelling {n_labels} visited states of {len(jobs_eps)} episodes with the "
-              f"closed-loop expert ({n_workers} process(es))...", flush=True)
-    if n_workers == 1:
-        parts = [r for j in jobs for r in _label_chunk(j)]
-    else:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
+        from tqdm.auto import tqdm
 
-        with ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("spawn")) as ex:
-            parts = [r for rs in ex.map(_label_chunk, jobs) for r in rs]
+        bar = tqdm(total=n_labels, desc=f"expert labels ({n_workers} proc)", unit="label")
+    results: list[list[dict[str, np.ndarray]] | None] = [None] * len(jobs)
+    cache = Path(cache_dir) if cache_dir is not None else None
+    keys = ("obs", "actions", "phi_rad", "status")
+
+    def _part(i: int) -> Path:
+        return cache / f"part_{i:04d}.npz"
+
+    def _keep(i: int, res: list[dict[str, np.ndarray]]) -> None:
+        results[i] = res
+        if cache is not None:
+            cache.mkdir(parents=True, exist_ok=True)
+            tmp = _part(i).with_suffix(".tmp.npz")
+            np.savez(tmp, n=np.array(len(res)),
+                     **{f"{k}_{e}": r[k] for e, r in enumerate(res) for k in keys})
+            os.replace(tmp, _part(i))
+        if bar is not None:
+            bar.update(sum(len(e["label_idx"]) for e in jobs[i]["episodes"]))
+
+    todo = []
+    for i in range(len(jobs)):
+        if cache is not None and _part(i).exists():
+            with np.load(_part(i)) as z:
+                results[i] = [{k: z[f"{k}_{e}"] for k in keys} for e in range(int(z["n"]))]
+            if bar is not None:
+                bar.update(sum(len(e["label_idx"]) for e in jobs[i]["episodes"]))
+        else:
+            todo.append(i)
+    try:
+        if n_workers == 1:
+            for i in todo:
+                _keep(i, _label_chunk(jobs[i]))
+        else:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor, as_completed
+
+            with ProcessPoolExecutor(max_workers=n_workers,
+                                     mp_context=mp.get_context("spawn")) as ex:
+                futs = {ex.submit(_label_chunk, jobs[i]): i for i in todo}
+                for fut in as_completed(futs):
+                    _keep(futs[fut], fut.result())
+    finally:
+        if bar is not None:
+            bar.close()
+    parts = [r for rs in results if rs for r in rs]
     if not parts:
         return {"obs": np.zeros((0, 5), np.float32), "actions": np.zeros((0, 1), np.float32),
                 "phi_rad": np.zeros(0), "status": np.zeros(0, dtype="<U12")}
@@ -550,7 +604,8 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
                                  float(dg["dense_tail_s"]), int(dg.get("n_label_workers", 1)),
                                  progress=not run.get("no_progress"),
                                  min_speed_m_s=float(dg.get("min_label_speed_m_s", 3.0)),
-                                 velocity_ref_m_s=get_scenario(sc_name).scaling().velocity_m_s)
+                                 velocity_ref_m_s=get_scenario(sc_name).scaling().velocity_m_s,
+                                 cache_dir=lbdir / f"iter_{it:03d}_parts")
             roll["label_wall_s"] = time.perf_counter() - t0
             tmp = lb_file.with_suffix(".tmp.npz")
             np.savez_compressed(tmp, **lab, **{k: np.array(v) for k, v in roll.items()})

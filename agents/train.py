@@ -93,6 +93,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--run-dir", default=None, help="explicit run directory (must not exist)")
     p.add_argument("--resume", default=None, metavar="RUN_DIR",
                    help="continue the run in RUN_DIR from its newest checkpoint")
+    p.add_argument("--init-from", default=None, metavar="MODEL",
+                   help="start a new run from this model's policy weights (run dir or .zip, "
+                        "e.g. a behaviour-cloning run of agents.imitation)")
     p.add_argument("--save-freq", type=int, default=None,
                    help="checkpoint every this many env steps (default: n_timesteps/20)")
     p.add_argument("--device", default="cpu", help="torch device (default: cpu)")
@@ -452,12 +455,41 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         print(f"Resuming {run_dir} from step {steps} of {n_timesteps}")
     else:
         norm_kw = _normalize_kwargs(hp.get("normalize"), hp.get("gamma"))
+        init = None
+        if run.get("init_from"):
+            # "PPO fine-tuned from BC": the new model starts from another model's policy weights.
+            # Decision: an init model saved without VecNormalize statistics acts on raw
+            # observations, so observation normalisation is switched off for this run (reward
+            # normalisation stays as configured); with statistics, they are loaded.
+            init, init_vn, _ = load_trained(run["init_from"], device=run.get("device", "cpu"))
+            if norm_kw is not None and init_vn is None and norm_kw.get("norm_obs", True):
+                norm_kw["norm_obs"] = False
+                print(f"--init-from {run['init_from']}: no VecNormalize statistics, so "
+                      "norm_obs is off (the initial policy expects raw observations)")
+            if norm_kw is not None and init_vn is not None:
+                venv = VecNormalize.load(str(init_vn), venv)
+                venv.training = True
+                norm_kw = None
         if norm_kw is not None:
             venv = VecNormalize(venv, **norm_kw)
         kwargs = resolve_algo_kwargs(hp, algo, n_actions=int(np.prod(venv.action_space.shape)))
         model = _algo_class(algo)(hp.get("policy", "MlpPolicy"), venv, seed=seed,
                                   device=run.get("device", "cpu"), tensorboard_log=tb_dir,
                                   verbose=int(run.get("verbose", 1)), **kwargs)
+        if init is not None:
+            # the exploration noise (log_std) stays this run's log_std_init: a cloned policy
+            # carries whatever its trainer left there
+            weights = {k: v for k, v in init.policy.state_dict().items() if k != "log_std"}
+            try:
+                model.policy.load_state_dict(weights, strict=False)
+                missing = set(model.policy.state_dict()) - set(weights) - {"log_std"}
+                if missing:
+                    raise RuntimeError(f"missing weights {sorted(missing)}")
+            except RuntimeError as exc:
+                raise ValueError(
+                    f"--init-from {run['init_from']}: its policy does not match this run's "
+                    f"policy_kwargs {hp.get('policy_kwargs')} ({exc}); pass the same net_arch "
+                    "with --hyperparams") from None
 
     curriculum = _find_wrapper(venv, "OptimalStartCurriculum")
     if curriculum is not None:  # continue the annealing schedule where the run stopped
