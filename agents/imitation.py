@@ -710,14 +710,30 @@ def _resolve(args) -> tuple[dict[str, Any], dict[str, Any]]:
     return hp, run
 
 
-def _run_env_kwargs(path: str | Path) -> dict[str, Any]:
+def _run_env_kwargs(path: str | Path, env_id: str) -> dict[str, Any]:
+    """The run's ``env_kwargs`` without entries equal to the env's defaults (so that runs with
+    ``{}`` and ``{dt_s: 1.0}`` share one env configuration)."""
+    import inspect
+
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+
     p = Path(path)
     run_dir = p if p.is_dir() else (p.parent.parent if p.parent.name == "checkpoints"
                                     else p.parent)
     cfg = run_dir / "config.yml"
+    kw = {}
     if cfg.exists():
-        return dict((yaml.safe_load(cfg.read_text()) or {}).get("env_kwargs") or {})
-    return {}
+        kw = dict((yaml.safe_load(cfg.read_text()) or {}).get("env_kwargs") or {})
+    env = gym.make(env_id, **kw)
+    task_cls = type(getattr(env.unwrapped, "_task", None))
+    env.close()
+    try:
+        defaults = {k: v.default for k, v in inspect.signature(task_cls).parameters.items()}
+    except (TypeError, ValueError):
+        defaults = {}
+    return {k: v for k, v in kw.items() if not (k in defaults and defaults[k] == v)}
 
 
 def _evaluate_cli(args) -> int:
@@ -736,7 +752,7 @@ def _evaluate_cli(args) -> int:
         if "=" not in item:
             raise SystemExit(f"--model {item!r}: expected NAME=PATH")
         name, path = item.split("=", 1)
-        kw = _run_env_kwargs(path)
+        kw = _run_env_kwargs(path, args.env)
         key = json.dumps(kw, sort_keys=True)
         groups.setdefault(key, (kw, []))[1].append(SB3Policy.from_path(path, name=name))
     if not groups:
