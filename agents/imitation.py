@@ -617,8 +617,14 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
         agg_obs, agg_act = [], []
         for j in range(it + 1):
             with np.load(lbdir / f"iter_{j:03d}.npz") as z:
-                agg_obs.append(z["obs"])
-                agg_act.append(z["actions"])
+                keep = np.ones(len(z["obs"]), dtype=bool)
+                if dg.get("drop_fallback_labels", True):
+                    # decision: a "fallback" label is the expert's braking guess where it found
+                    # no landing at all, not an optimal action; measured, it contradicts the
+                    # optimal labels next to it (35-43° RMS apart) and only adds noise
+                    keep = z["status"] != "fallback"
+                agg_obs.append(z["obs"][keep])
+                agg_act.append(z["actions"][keep])
         eo, ea = np.concatenate(agg_obs), np.concatenate(agg_act)
         stats = fit_policy(policy, ds.observations, ds.actions, n_epochs=int(dg["n_epochs"]),
                            batch_size=int(dg["batch_size"]),
@@ -626,8 +632,8 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
                            learning_rate_final=float(dg.get("learning_rate_final",
                                                             dg["learning_rate"])),
                            rng=rng, extra_obs=eo, extra_act=ea,
-                           extra_fraction=float(dg["dagger_fraction"]), val_obs=eo[-len(
-                               lab["obs"]):], val_act=ea[-len(lab["obs"]):],
+                           extra_fraction=float(dg["dagger_fraction"]),
+                           val_obs=agg_obs[-1], val_act=agg_act[-1],
                            logger=logger, progress=not run.get("no_progress"),
                            log_prefix=f"dagger_iter{it}",
                            step_offset=it * int(dg["n_epochs"]))
