@@ -585,6 +585,10 @@ def plot_comparison(report: dict[str, Any], path: str | Path) -> Path:
                     for j in range(tc["action"].shape[1]):
                         ax_u.step(tc["t_s"][:len(tc["action"])], tc["action"][:, j],
                                   where="post", label=f"{res.name} a{j}")
+        lo, hi = ax_tr.get_ylim()
+        # a trajectory that passed below the surface (an env failure, reported in the table as
+        # no touchdown) must not squash the others: clip the view just below the surface
+        ax_tr.set_ylim(max(lo, -0.05 * hi), hi)
         ax_tr.set_xlabel("downrange (km)" if planar else "time (s)")
         ax_tr.set_ylabel("altitude (km)")
         ax_tr.set_title(f"case {cid}: trajectory")
