@@ -7,13 +7,13 @@ per-model kernels run on scalar tuples (no per-step heap arrays), which is what 
 
 Names bound per model: ``LOAD(row) -> state tuple``, ``DERIV(y, u, p) -> dy tuple``,
 ``PREP(u) -> c`` and ``DERIV_C(y, c, p) -> dy`` (the same right-hand side split into its
-control part and its state part, DERIV = DERIV_C ∘ PREP),
-``RADIUS(y)``, ``SPEED_RATE(y, dy)`` (= V_rel · dV_rel/dt, whose upward zero crossing is a
-minimum of the speed relative to the surface), ``MASS(y)``, ``UZERO`` (zero control tuple; the
-last control channel is the throttle).
+control part and its state part, DERIV = DERIV_C ∘ PREP), ``RADIUS(y)``, ``RADIAL_RATE(y)``
+(with the sign of dr/dt), ``SPEED_RATE(y, dy)`` (= V_rel · dV_rel/dt, whose upward zero crossing
+is a minimum of the speed relative to the surface), ``MASS(y)``, ``UZERO`` (zero control tuple;
+the last control channel is the throttle).
 """
 
-# ruff: noqa: F821  (LOAD, DERIV, PREP, DERIV_C, RADIUS, SPEED_RATE, MASS, UZERO are bound per model)
+# ruff: noqa: F821  (LOAD, DERIV, PREP, DERIV_C, RADIAL_RATE, RADIUS, SPEED_RATE, MASS, UZERO are bound per model)
 import numpy as np
 from numba import prange
 from numba.cpython.unsafe.tuple import tuple_setitem
@@ -22,6 +22,7 @@ EVENT_NONE = 0
 EVENT_RADIUS = 1
 EVENT_SPEED_MIN = 2
 EVENT_FUEL = 3
+EVENT_RADIUS_MIN = 4  # internal: radial rate crossing zero upward (a minimum of the radius)
 _ROOT_ITERATIONS = 80
 
 
@@ -87,13 +88,15 @@ def event_value(kind, y, t, breaks, coefs, i, k, burn, p, r_stop, m_dry):
         return RADIUS(y) - r_stop
     if kind == EVENT_FUEL:
         return MASS(y) - m_dry
+    if kind == EVENT_RADIUS_MIN:
+        return RADIAL_RATE(y)
     u = control_in(breaks, coefs, i, k, t, burn)  # under the step's control (segment k)
     return SPEED_RATE(y, DERIV(y, u, p))
 
 
 def is_after(kind, g):
     """Whether the event function value g lies on the post-event side."""
-    if kind == EVENT_SPEED_MIN:
+    if kind == EVENT_SPEED_MIN or kind == EVENT_RADIUS_MIN:
         return g >= 0.0
     return g <= 0.0
 
@@ -190,9 +193,22 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
                 if use_radius:
                     g0 = RADIUS(y) - rs
                     g1 = RADIUS(y1) - rs
+                    h_cross = -1.0
                     if g0 > 0.0 and g1 <= 0.0:
-                        tau = locate(EVENT_RADIUS, y, t, hh, g0, g1, breaks, coefs, i, k, burn,
-                                     p, rs, m_dry)
+                        h_cross = hh
+                    elif g0 > 0.0 and RADIAL_RATE(y) < 0.0 and RADIAL_RATE(y1) > 0.0:
+                        # The radius has a minimum inside the step: a dip below r_stop and back
+                        # (a lander braking to a stop just under the surface) crosses twice and
+                        # shows no sign change at the step's ends. Look at the minimum.
+                        tau_m = locate(EVENT_RADIUS_MIN, y, t, hh, RADIAL_RATE(y),
+                                       RADIAL_RATE(y1), breaks, coefs, i, k, burn, p, rs, m_dry)
+                        g_m = RADIUS(rk4_step(y, t, tau_m, breaks, coefs, i, k, burn, p)) - rs
+                        if g_m <= 0.0:
+                            h_cross = tau_m
+                            g1 = g_m
+                    if h_cross > 0.0:
+                        tau = locate(EVENT_RADIUS, y, t, h_cross, g0, g1, breaks, coefs, i, k,
+                                     burn, p, rs, m_dry)
                         if tau < best or kind == EVENT_NONE:
                             best = tau
                             kind = EVENT_RADIUS

@@ -15,6 +15,8 @@ Events, located inside the step on the RK4 solution itself (root-finding on the 
 length, not stopping at the next grid point):
 
 - :class:`RadiusCrossing`: r falls through a given radius (touchdown, target altitude). Terminal.
+  Also found when the radius dips below and comes back within one step (the minimum of r
+  inside the step is located and checked).
 - :class:`SpeedMinimum`: the speed relative to the surface reaches a minimum (which includes
   reaching zero): the engine cut-off of a constant-thrust, steer-only lander. Terminal.
 - Fuel exhaustion (always on): when m reaches ``dry_mass_nd`` the throttle is forced to zero
@@ -114,6 +116,11 @@ def _planar_radius(y):
 
 
 @njit(cache=True, inline="always")
+def _planar_radial_rate(y):
+    return y[1]
+
+
+@njit(cache=True, inline="always")
 def _planar_speed_rate(y, dy):
     # relative velocity (v, rω); its derivative (v', v ω + r ω')
     vt = y[0] * y[3]
@@ -154,6 +161,12 @@ def _moon3d_deriv(y, u, p):
 @njit(cache=True, inline="always")
 def _moon3d_radius(y):
     return math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2])
+
+
+@njit(cache=True, inline="always")
+def _moon3d_radial_rate(y):
+    # r·V has the sign of dr/dt
+    return y[0] * y[3] + y[1] * y[4] + y[2] * y[5]
 
 
 @njit(cache=True, inline="always")
@@ -198,13 +211,15 @@ class Model:
 PLANAR = Model(
     "planar", 5, 2, dyn.PLANAR_STATE_NAMES, ("phi", "throttle"), dyn.planar_rhs,
     dict(LOAD=_planar_load, DERIV=_planar_deriv, PREP=_planar_prep, DERIV_C=_planar_deriv_c,
-         RADIUS=_planar_radius, SPEED_RATE=_planar_speed_rate, MASS=_planar_mass,
+         RADIUS=_planar_radius, RADIAL_RATE=_planar_radial_rate,
+         SPEED_RATE=_planar_speed_rate, MASS=_planar_mass,
          UZERO=(0.0, 0.0)),
 )
 MOON3D = Model(
     "moon3d", 7, 3, dyn.MOON3D_STATE_NAMES, ("alpha", "beta", "throttle"), dyn.moon3d_rhs,
     dict(LOAD=_moon3d_load, DERIV=_moon3d_deriv, PREP=_moon3d_prep, DERIV_C=_moon3d_deriv_c,
-         RADIUS=_moon3d_radius, SPEED_RATE=_moon3d_speed_rate, MASS=_moon3d_mass,
+         RADIUS=_moon3d_radius, RADIAL_RATE=_moon3d_radial_rate,
+         SPEED_RATE=_moon3d_speed_rate, MASS=_moon3d_mass,
          UZERO=(0.0, 0.0, 0.0)),
 )
 

@@ -352,3 +352,20 @@ def test_pontryagin_optimum_replayed_scores_at_least_as_well(optimal_cubic):
                        {"nominal": True})
     assert term and info["is_success"]
     assert r_pmp >= r_cubic - 1e-3
+
+
+def test_regression_cutoff_under_the_surface_is_a_touchdown():
+    """Regression: a braking lander whose speed minimum falls a few mm below the surface inside
+    a step used to fall through the Moon until the time limit. It must touch down at once."""
+    sc = lunar_env.get_scenario("zhu2007")
+    env = gym.make("LunarSoftLanding-v0")
+    # 5 cm up, sinking at 0.28 m/s and sliding at 1.24 m/s, thrust angle 34.8°: the state the
+    # re-planning expert reached in the reported case
+    state = np.array([sc.target.radius_m + 0.0478, -0.28, 0.0, 1.24, 325.0])
+    env.reset(options={"state_si": state})
+    a = np.array([np.radians(34.8) / (np.pi / 2)], dtype=np.float32)
+    _, _, terminated, truncated, info = env.step(a)
+    assert terminated and not truncated
+    assert info["is_success"]
+    assert info["altitude_m"] == pytest.approx(0.0, abs=1e-3)
+    assert info["touchdown_speed_m_s"] < 1.0

@@ -156,3 +156,25 @@ def test_control_batch_mismatch_rejected():
     with pytest.raises(TypeError, match="unknown event"):
         integrate(PLANAR, SC.state_nd()[None], t0_nd=0, dt_nd=1e-3, n_steps=2,
                   control=_braking_control(), params=P, events=("touchdown",))
+
+
+def test_touchdown_found_when_the_radius_dips_below_and_back_within_one_step():
+    """Regression (found by the DAgger expert): a lander braking to a stop 3 mm under the
+    surface and climbing back within one step crosses the surface twice; the step's end points
+    are both above it. The touchdown must still be located (the first crossing)."""
+    rL = S.length_nd(SC.target.radius_m)
+    y0 = np.array([rL + S.length_nd(0.5), S.velocity_nd(-2.0), 0.0, 0.0, 0.6])
+    up = np.array([[math.pi / 2, 1.0]])  # ~3.8 m/s² net upward: v = 0 after ~0.5 s
+    ctrl = PiecewisePolynomial.constant(up, 0.0, 10.0)
+    dt = S.time_nd(3.0)
+    end = integrate(PLANAR, y0[None], t0_nd=0, dt_nd=dt, n_steps=1, control=ctrl, params=P)
+    assert end.y_end[0, dyn.R] > rL  # the dip is invisible at the step's end points
+    res = integrate(PLANAR, y0[None], t0_nd=0, dt_nd=dt, n_steps=1, control=ctrl, params=P,
+                    events=(RadiusCrossing(rL), SpeedMinimum()))
+    assert res.status[0] == STATUS_RADIUS
+    assert abs(res.y_end[0, dyn.R] - rL) * S.length_m < 1e-3
+    assert res.y_end[0, dyn.VR] < 0
+    # no dip below the stop radius: nothing fires, as before
+    high = integrate(PLANAR, (y0 + [S.length_nd(5.0), 0, 0, 0, 0])[None], t0_nd=0, dt_nd=dt,
+                     n_steps=1, control=ctrl, params=P, events=(RadiusCrossing(rL),))
+    assert high.status[0] == STATUS_COMPLETED
