@@ -585,10 +585,12 @@ def plot_comparison(report: dict[str, Any], path: str | Path) -> Path:
                     for j in range(tc["action"].shape[1]):
                         ax_u.step(tc["t_s"][:len(tc["action"])], tc["action"][:, j],
                                   where="post", label=f"{res.name} a{j}")
-        lo, hi = ax_tr.get_ylim()
         # a trajectory that passed below the surface (an env failure, reported in the table as
         # no touchdown) must not squash the others: clip the view just below the surface
-        ax_tr.set_ylim(max(lo, -0.05 * hi), hi)
+        tops = [ln.get_ydata().max() for ln in ax_tr.get_lines() if len(ln.get_ydata())]
+        if tops:
+            hi = 1.05 * max(max(tops), 1e-3)
+            ax_tr.set_ylim(-0.05 * hi, hi)
         ax_tr.set_xlabel("downrange (km)" if planar else "time (s)")
         ax_tr.set_ylabel("altitude (km)")
         ax_tr.set_title(f"case {cid}: trajectory")
@@ -666,8 +668,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--trace-cases", type=int, default=3)
     p.add_argument("--out", default=None, help="output directory (default results/evaluate)")
     p.add_argument("--json", default=None, help="also write the JSON report to this file")
+    p.add_argument("--torch-threads", type=int, default=1,
+                   help="torch threads for SB3 inference (default 1, as in training)")
     args = p.parse_args(argv)
+    import torch
     import yaml
+
+    torch.set_num_threads(max(args.torch_threads, 1))
 
     env_id = args.env
     env_kwargs = None
