@@ -132,10 +132,17 @@ class SB3Policy:
         Statistics (or the ``.pkl`` written by ``VecNormalize.save``); ``None`` if the model was
         trained without normalisation.
     name : str
+    obs_features : list of str, optional
+        Derived observation features the model was trained with (:mod:`agents.features`, the
+        run's ``obs_features``); appended to the env's observations before normalisation, as
+        in training.
     """
 
-    def __init__(self, model, vecnormalize=None, name: str = "PPO") -> None:
+    def __init__(self, model, vecnormalize=None, name: str = "PPO",
+                 obs_features: list[str] | None = None) -> None:
         import pickle
+
+        from agents.features import validate_features
 
         self.model = model
         self.name = name
@@ -143,19 +150,38 @@ class SB3Policy:
             with open(vecnormalize, "rb") as fh:
                 vecnormalize = pickle.load(fh)
         self.vecnormalize = vecnormalize
+        self.obs_features = validate_features(obs_features)
+        self._feature_consts = None
 
     @classmethod
     def from_path(cls, path: str | Path, name: str | None = None) -> SB3Policy:
         """Load from a run directory or model ``.zip`` (see :func:`agents.train.load_trained`)."""
+        import yaml
+
         from agents.train import load_trained
 
         model, vn_path, algo = load_trained(path)
-        return cls(model, vn_path, name=name or algo.upper())
+        p = Path(path)
+        run_dir = p if p.is_dir() else (p.parent.parent if p.parent.name == "checkpoints"
+                                        else p.parent)
+        cfg = run_dir / "config.yml"
+        hp = yaml.safe_load(cfg.read_text()) if cfg.exists() else {}
+        return cls(model, vn_path, name=name or algo.upper(),
+                   obs_features=(hp or {}).get("obs_features"))
 
     def reset(self, venv, case_ids: np.ndarray) -> None:
-        pass
+        if self.obs_features:
+            from agents.features import feature_constants
+
+            self._feature_consts = feature_constants(_core(venv)._task)
 
     def act(self, obs: np.ndarray, venv) -> np.ndarray:
+        if self.obs_features:
+            from agents.features import augment_observation, feature_constants
+
+            if self._feature_consts is None:
+                self._feature_consts = feature_constants(_core(venv)._task)
+            obs = augment_observation(obs, self._feature_consts, self.obs_features)
         if self.vecnormalize is not None:
             obs = self.vecnormalize.normalize_obs(obs)
         action, _ = self.model.predict(obs, deterministic=True)

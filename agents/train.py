@@ -134,14 +134,20 @@ def _is_native_env(env_id: str) -> bool:
 def make_training_env(env_id: str, n_envs: int, seed: int | None,
                       env_kwargs: dict[str, Any] | None = None,
                       curriculum: dict[str, Any] | None = None, total_timesteps: int = 0,
-                      progress: bool = True):
+                      progress: bool = True, obs_features: list[str] | None = None,
+                      reward_shaping: dict[str, Any] | None = None, gamma: float = 0.99):
     """Build the SB3 ``VecEnv`` to train on (no normalisation wrapper).
 
     Our env ids go through the natively batched vector env (:func:`agents.vec_env.
     make_sb3_vec_env`); other Gymnasium ids through SB3's ``make_vec_env`` (``DummyVecEnv``).
     ``curriculum`` (the YAML mapping) wraps the batch in :class:`agents.curriculum.
-    OptimalStartCurriculum` annealed over ``total_timesteps``. Episode statistics are recorded by
-    ``VecMonitor`` when the adapter does not already.
+    OptimalStartCurriculum` annealed over ``total_timesteps``; ``obs_features`` (names of
+    :mod:`agents.features`) appends derived features to the observations
+    (:class:`agents.features.ObsFeatureWrapper`, outside the curriculum); ``reward_shaping``
+    (YAML mapping) adds the potential-based shaping of :class:`agents.shaping.PotentialShaping`
+    with discount ``gamma`` (training only: evaluation measures landings, not rewards). Episode
+    statistics are recorded by ``VecMonitor`` when the adapter does not already (they show the
+    shaped return when shaping is on).
     """
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import VecMonitor
@@ -160,9 +166,19 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
             venv = OptimalStartCurriculum(venv, total_timesteps=total_timesteps,
                                           seed=0 if seed is None else int(seed),
                                           progress=progress, **curriculum)
+        if reward_shaping:
+            from agents.shaping import PotentialShaping
+
+            venv = PotentialShaping(venv, gamma=gamma, **reward_shaping)
+        if obs_features:
+            from agents.features import ObsFeatureWrapper
+
+            venv = ObsFeatureWrapper(venv, obs_features)
     else:
-        if curriculum:
-            raise ValueError(f"curriculum is only available for lunar_env ids, not {env_id!r}")
+        if curriculum or obs_features or reward_shaping:
+            raise ValueError("curriculum, obs_features and reward_shaping are only available for "
+                             "lunar_env ids, "
+                             f"not {env_id!r}")
         venv = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
         return venv  # make_vec_env already wraps each env in Monitor
     node, monitored = venv, False
@@ -435,7 +451,10 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     n_envs, n_timesteps = hp["n_envs"], hp["n_timesteps"]
     venv = make_training_env(run["env"], n_envs, seed, hp.get("env_kwargs"),
                              curriculum=hp.get("curriculum"), total_timesteps=n_timesteps,
-                             progress=not run.get("no_progress"))
+                             progress=not run.get("no_progress"),
+                             obs_features=hp.get("obs_features"),
+                             reward_shaping=hp.get("reward_shaping"),
+                             gamma=float(hp.get("gamma", 0.99)))
     tb_dir = None if run.get("no_tensorboard") else str(run_dir / "tb")
 
     if resume:

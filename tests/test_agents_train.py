@@ -33,7 +33,8 @@ def test_quick_config_end_to_end(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "| policy |" in out and "Pontryagin open loop" in out
     # the reloaded policy flies the same cases as in the table
-    res = rollout(ENV_ID, SB3Policy(model, vn_path), 4, seed=2026)
+    res = rollout(ENV_ID, SB3Policy.from_path(run_dir), 4, seed=2026,
+                  env_kwargs=hp.get("env_kwargs"))
     table = (run_dir / "evaluation" / "comparison.md").read_text()
     row = next(line for line in table.splitlines() if line.startswith("| PPO"))
     assert f"| {100 * res.is_success.mean():.1f} |" in row

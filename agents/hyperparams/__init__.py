@@ -31,7 +31,8 @@ Python objects are given by name and resolved from a fixed table:
   noise, as in the Zoo.
 
 Keys that are not algorithm arguments (``n_envs``, ``n_timesteps``, ``policy``, ``normalize``,
-``noise_type``, ``noise_std``, ``env_kwargs``, ``curriculum``) are taken out before the
+``noise_type``, ``noise_std``, ``env_kwargs``, ``curriculum``, ``obs_features``,
+``reward_shaping``) are taken out before the
 algorithm is built. ``curriculum`` is a mapping of :class:`agents.curriculum.
 OptimalStartCurriculum` arguments (``start_prob``, ``anneal_fraction``, ``n_trajectories``,
 ...), or absent.
@@ -57,7 +58,7 @@ ALGOS = ("ppo", "sac", "td3")
 PROFILE_SEPARATOR = "@"
 #: keys consumed by the training script itself, not passed to the algorithm constructor
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "noise_type", "noise_std",
-            "env_kwargs", "curriculum")
+            "env_kwargs", "curriculum", "obs_features", "reward_shaping")
 
 _ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU",
                 "gelu": "GELU", "silu": "SiLU"}

@@ -1,0 +1,211 @@
+"""Derived observation features for the soft-landing policy (agents side; the env is unchanged).
+
+Why: ``LunarSoftLanding-v0`` observes altitude / 15 km, radial speed / 169 m/s and horizontal
+speed / 1.69 km/s (:mod:`lunar_env.envs.soft_landing`). Those scales suit the start of the
+descent, but the last few hundred metres and tens of m/s — where a touchdown speed of 5 m/s is
+won or lost — occupy a few thousandths of the input range. A steer-only, constant-thrust lander
+must also judge *when* braking has to win over gravity: the key quantity is the ratio of the
+distance needed to stop to the altitude left. The features below give the network these
+quantities directly. They are computed **from the env's observation alone** (which is an
+invertible scaling of the physical state, up to the observation clipping), so the same function
+serves training, the terminal observations SB3 bootstraps from, and evaluation, and a policy
+trained with features can be replayed exactly: the run's ``config.yml`` records
+``obs_features`` and :class:`agents.evaluate.SB3Policy` re-applies them.
+
+Feature names (YAML key ``obs_features``; each adds the columns listed, in this order):
+
+``log_altitude``
+    log10(1 + h / 1 m) / 4.2 (h: altitude above the surface; 15 km → ~1).
+``fine_velocity``
+    sign(v)·log(1 + |v| / 1 m/s) / 7 for the radial and then the horizontal velocity (2 columns):
+    1 m/s and 1 km/s are both resolved.
+``stopping_ratio``
+    log(1 + v² / (2·a_net·h)), clipped to [0, 8], with v the speed, a_net = max(F/m − g, 0.05
+    m/s²) the net braking acceleration if all thrust opposed gravity and the motion, and h
+    clipped below at 1 m: ~log 2 when a full-thrust stop just reaches the ground. Decision: the
+    ratio uses the total speed (horizontal braking is also paid against the altitude budget,
+    since the thrust that brakes horizontally does not hold the lander up).
+``time_to_go``
+    Two columns: the full-thrust braking time v / (F/m) and the time to reach the ground at the
+    current sink rate h / max(−v_r, 1 m/s), both / 100 s and clipped to [0, 10].
+``fuel_margin``
+    (propellant left − propellant to cancel the speed at full thrust, m·(1 − exp(−v / v_e)))
+    / nominal propellant: the margin the remaining descent can spend on gravity losses.
+
+Mass m = dry mass + propellant fraction × nominal propellant; g = μ / R_surface² (the scenario's
+scaling: 1.62 m/s² for the Moon). All features are finite for every observation in the env's
+observation box (tested).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
+
+__all__ = ["FEATURE_WIDTHS", "augment_observation", "feature_constants", "validate_features",
+           "ObsFeatureWrapper"]
+
+#: columns added by each feature name, in the order they are appended
+FEATURE_WIDTHS = {"log_altitude": 1, "fine_velocity": 2, "stopping_ratio": 1,
+                  "time_to_go": 2, "fuel_margin": 1}
+
+
+def validate_features(names: Sequence[str] | None) -> list[str]:
+    """The feature names as a list; raises ``ValueError`` on unknown or repeated names."""
+    if names is None:
+        return []
+    if isinstance(names, str):
+        raise TypeError(f"obs_features={names!r} must be a list of names, not a string")
+    out = [str(n) for n in names]
+    bad = [n for n in out if n not in FEATURE_WIDTHS]
+    if bad:
+        raise ValueError(f"unknown obs_features {bad}; allowed: {sorted(FEATURE_WIDTHS)}")
+    if len(set(out)) != len(out):
+        raise ValueError(f"obs_features {out} repeats a name")
+    return out
+
+
+def feature_constants(task) -> dict[str, float]:
+    """SI constants of a soft-landing task (``LunarSoftLandingEnv``'s ``_task``) used by features.
+
+    Raises ``TypeError`` for a task that is not the planar soft-landing task.
+    """
+    needed = ("altitude_scale_m", "speed_scale_m_s", "prop_nominal_nd", "dry_mass_nd",
+              "mass_ref_kg", "velocity_ref_m_s", "length_ref_m", "r_stop_nd", "scenario")
+    if getattr(task, "has_target", True) or not all(hasattr(task, k) for k in needed):
+        raise TypeError("observation features are defined for LunarSoftLanding-v0 only")
+    v = task.scenario.vehicle
+    return {
+        "altitude_scale_m": float(task.altitude_scale_m),
+        "speed_scale_m_s": float(task.speed_scale_m_s),
+        "prop_nominal_kg": float(task.prop_nominal_nd * task.mass_ref_kg),
+        "dry_mass_kg": float(task.dry_mass_nd * task.mass_ref_kg),
+        "thrust_n": float(v.thrust_n),
+        "exhaust_velocity_m_s": float(v.exhaust_velocity_m_s),
+        # μ = 1 in normalised units: g_surface = (V² / L) / r_surface²
+        "gravity_m_s2": float(task.velocity_ref_m_s ** 2 / task.length_ref_m
+                              / task.r_stop_nd ** 2),
+    }
+
+
+def augment_observation(obs: np.ndarray, consts: dict[str, float],
+                        names: Sequence[str]) -> np.ndarray:
+    """Append the features ``names`` to env observations.
+
+    Parameters
+    ----------
+    obs : ndarray, shape (B, 5)
+        ``LunarSoftLanding-v0`` observations (altitude/h₀, v_r/(0.1 v₀), v_t/v₀, propellant
+        fraction, time fraction).
+    consts : dict
+        :func:`feature_constants` of the env's task.
+    names : sequence of str
+        Feature names (:data:`FEATURE_WIDTHS`).
+
+    Returns
+    -------
+    ndarray, shape (B, 5 + Σ widths), float32
+    """
+    obs = np.asarray(obs)
+    if not names:
+        return obs.astype(np.float32, copy=False)
+    if obs.ndim != 2 or obs.shape[1] != 5:
+        raise ValueError(f"obs shape {obs.shape}: expected (B, 5) soft-landing observations")
+    o = obs.astype(np.float64)
+    h = o[:, 0] * consts["altitude_scale_m"]
+    vr = o[:, 1] * 0.1 * consts["speed_scale_m_s"]
+    vt = o[:, 2] * consts["speed_scale_m_s"]
+    prop = np.maximum(o[:, 3], 0.0) * consts["prop_nominal_kg"]
+    m = consts["dry_mass_kg"] + prop
+    speed = np.hypot(vr, vt)
+    a_thrust = consts["thrust_n"] / m
+    cols: list[np.ndarray] = []
+    for name in names:
+        if name == "log_altitude":
+            cols.append(np.log10(1.0 + np.maximum(h, 0.0)) / 4.2)
+        elif name == "fine_velocity":
+            cols.append(np.sign(vr) * np.log1p(np.abs(vr)) / 7.0)
+            cols.append(np.sign(vt) * np.log1p(np.abs(vt)) / 7.0)
+        elif name == "stopping_ratio":
+            a_net = np.maximum(a_thrust - consts["gravity_m_s2"], 0.05)
+            ratio = speed ** 2 / (2.0 * a_net * np.maximum(h, 1.0))
+            cols.append(np.clip(np.log1p(ratio), 0.0, 8.0))
+        elif name == "time_to_go":
+            cols.append(np.clip(speed / a_thrust / 100.0, 0.0, 10.0))
+            cols.append(np.clip(np.maximum(h, 0.0) / np.maximum(-vr, 1.0) / 100.0, 0.0, 10.0))
+        elif name == "fuel_margin":
+            need = m * -np.expm1(-speed / consts["exhaust_velocity_m_s"])
+            cols.append((prop - need) / consts["prop_nominal_kg"])
+        else:  # validate_features guards this
+            raise ValueError(f"unknown feature {name!r}")
+    out = np.concatenate([o, np.stack(cols, axis=1)], axis=1)
+    return out.astype(np.float32)
+
+
+def _feature_bounds(names: Sequence[str]) -> tuple[list[float], list[float]]:
+    lo, hi = [], []
+    for name in names:
+        if name == "log_altitude":
+            lo += [0.0]
+            hi += [2.0]
+        elif name == "fine_velocity":
+            lo += [-2.0, -2.0]
+            hi += [2.0, 2.0]
+        elif name == "stopping_ratio":
+            lo += [0.0]
+            hi += [8.0]
+        elif name == "time_to_go":
+            lo += [0.0, 0.0]
+            hi += [10.0, 10.0]
+        elif name == "fuel_margin":
+            lo += [-2.0]
+            hi += [2.0]
+    return lo, hi
+
+
+class ObsFeatureWrapper(VecEnvWrapper):
+    """Append :func:`augment_observation` features to every observation of a soft-landing VecEnv.
+
+    :param venv: a VecEnv whose innermost env is :class:`agents.vec_env.LanderSB3VecEnv` of
+        ``LunarSoftLanding-v0`` (curriculum wrappers in between are fine: the features are a
+        function of the observation alone).
+    :param names: feature names (:data:`FEATURE_WIDTHS`).
+
+    ``info["terminal_observation"]`` is augmented too, so value bootstrapping on truncation sees
+    the same inputs as the policy.
+    """
+
+    def __init__(self, venv, names: Sequence[str]) -> None:
+        self.names = validate_features(names)
+        if not self.names:
+            raise ValueError("ObsFeatureWrapper needs at least one feature name")
+        node = venv
+        while not hasattr(node, "native") and hasattr(node, "venv"):
+            node = node.venv
+        native = getattr(node, "native", None)
+        if native is None:
+            raise TypeError("ObsFeatureWrapper needs a LanderSB3VecEnv of LunarSoftLanding-v0 "
+                            "inside the wrapper chain")
+        self.consts = feature_constants(native._task)
+        base = venv.observation_space
+        lo, hi = _feature_bounds(self.names)
+        space = spaces.Box(np.concatenate([base.low, lo]).astype(np.float32),
+                           np.concatenate([base.high, hi]).astype(np.float32), dtype=np.float32)
+        super().__init__(venv, observation_space=space)
+
+    def _aug(self, obs: np.ndarray) -> np.ndarray:
+        return augment_observation(obs, self.consts, self.names)
+
+    def reset(self) -> np.ndarray:
+        return self._aug(self.venv.reset())
+
+    def step_wait(self):
+        obs, rew, done, infos = self.venv.step_wait()
+        for info in infos:
+            t = info.get("terminal_observation")
+            if t is not None:
+                info["terminal_observation"] = self._aug(np.asarray(t)[None])[0]
+        return self._aug(obs), rew, done, infos

@@ -1,0 +1,104 @@
+"""Potential-based reward shaping for the soft-landing env (agents side; the env is unchanged).
+
+Why: ``LunarSoftLanding-v0`` pays −fuel per step and −log(1 + v_td / 1 m/s) once, at the end of
+a ~700 s flight. Whether a steering decision early in the descent was good shows only hundreds
+of steps later, and PPO trained on that signal settled on "dive first, brake near the ground"
+(issue 7). The shaping term below pays, at every step, for the change of a potential Φ of the
+state, F = γ·Φ(s') − Φ(s), with Φ(terminal) = 0. By Ng, Harada & Russell (1999) shaping of this
+form leaves the optimal policy of the discounted problem unchanged (the shaped return differs
+from the true one by −Φ(s₀), which no action changes), so the fuel-optimal soft landing stays the
+best policy; only the credit assignment becomes local.
+
+Potential (YAML ``reward_shaping: {potential: surface_speed, weight: w}``):
+
+``surface_speed``
+    Φ(s) = −w·log(1 + v_s / 1 m/s), v_s = √(v² + 2·(μ/R − μ/r)) the speed the lander would have
+    at the surface with the engine off (its mechanical energy, the same estimate the env
+    charges a truncated episode with). Thrust that opposes the motion lowers v_s; diving raises
+    it. With w = 1 the potential has the same form and scale as the env's terminal penalty.
+
+The potential is computed from the observation (altitude, radial and horizontal speed), so the
+wrapper sits outside the start-state curriculum and needs no access to the env's state.
+Evaluation is not affected (it measures touchdown speed and fuel, not rewards). Decision: a
+truncated episode also gets Φ(s') = 0 at its end (rare: only policies that never land); SB3
+bootstraps the value there, so the shaping's telescoping is exact only for terminated episodes.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
+
+from agents.features import feature_constants
+
+__all__ = ["PotentialShaping", "surface_speed_m_s"]
+
+POTENTIALS = ("surface_speed",)
+
+
+def surface_speed_m_s(obs: np.ndarray, consts: dict[str, float], surface_radius_m: float
+                      ) -> np.ndarray:
+    """Engine-off surface speed (m/s), shape (B,), from soft-landing observations (B, ≥5)."""
+    o = np.asarray(obs, dtype=np.float64)
+    h = np.maximum(o[:, 0] * consts["altitude_scale_m"], 0.0)
+    vr = o[:, 1] * 0.1 * consts["speed_scale_m_s"]
+    vt = o[:, 2] * consts["speed_scale_m_s"]
+    g_r2 = consts["gravity_m_s2"] * surface_radius_m ** 2  # μ (m³/s²)
+    drop = 2.0 * g_r2 * (1.0 / surface_radius_m - 1.0 / (surface_radius_m + h))
+    return np.sqrt(vr ** 2 + vt ** 2 + drop)
+
+
+class PotentialShaping(VecEnvWrapper):
+    """Add F = γ·Φ(s') − Φ(s) to the rewards of a soft-landing VecEnv (see module docstring).
+
+    :param venv: VecEnv of ``LunarSoftLanding-v0`` observations (a ``LanderSB3VecEnv``, possibly
+        wrapped by the curriculum).
+    :param gamma: the algorithm's discount factor (the shaping must use the same γ).
+    :param potential: ``"surface_speed"``.
+    :param weight: w > 0.
+    """
+
+    def __init__(self, venv, gamma: float, potential: str = "surface_speed",
+                 weight: float = 1.0) -> None:
+        super().__init__(venv)
+        if potential not in POTENTIALS:
+            raise ValueError(f"potential={potential!r}; allowed: {POTENTIALS}")
+        if not (np.isfinite(weight) and weight > 0):
+            raise ValueError(f"weight={weight!r} must be finite and > 0")
+        if not (0.0 < gamma <= 1.0):
+            raise ValueError(f"gamma={gamma!r} must be in (0, 1]")
+        node = venv
+        while not hasattr(node, "native") and hasattr(node, "venv"):
+            node = node.venv
+        native = getattr(node, "native", None)
+        if native is None:
+            raise TypeError("PotentialShaping needs a LanderSB3VecEnv of LunarSoftLanding-v0")
+        self.consts = feature_constants(native._task)
+        self.surface_radius_m = float(native.scenario.surface_radius_m)
+        self.gamma = float(gamma)
+        self.potential = potential
+        self.weight = float(weight)
+        self._phi: np.ndarray | None = None
+
+    def phi(self, obs: np.ndarray) -> np.ndarray:
+        """Φ of observations, shape (B,)."""
+        return -self.weight * np.log1p(surface_speed_m_s(obs, self.consts,
+                                                         self.surface_radius_m))
+
+    def reset(self) -> np.ndarray:
+        obs = self.venv.reset()
+        self._phi = self.phi(obs)
+        return obs
+
+    def step_wait(self):
+        obs, rew, done, infos = self.venv.step_wait()
+        phi_next = self.phi(obs)
+        target = np.where(done, 0.0, phi_next)  # Φ(terminal) = 0; obs of a done env is a reset
+        shaped = rew + (self.gamma * target - self._phi).astype(np.float32)
+        self._phi = phi_next
+        return obs, shaped.astype(np.float32), done, infos
+
+    def config(self) -> dict[str, Any]:
+        return {"potential": self.potential, "weight": self.weight, "gamma": self.gamma}
