@@ -55,15 +55,9 @@ def segment_at(breaks, coefs, i, k, t):
     return k
 
 
-def rk4_step(y, t, h, breaks, coefs, i, k, burn, p):
-    """One classical RK4 step of length h from (t, y)."""
-    u0 = control_in(breaks, coefs, i, k, t, burn)
-    u1 = control_in(breaks, coefs, i, k, t + 0.5 * h, burn)
-    u2 = control_in(breaks, coefs, i, k, t + h, burn)
-    # the control's trigonometry once per distinct value: a held control costs one sin/cos
-    c0 = PREP(u0)
-    c1 = c0 if u1 == u0 else PREP(u1)
-    c2 = c1 if u2 == u1 else PREP(u2)
+def rk4_core(y, h, c0, c1, c2, p):
+    """One classical RK4 step of length h from y, given the prepared controls (``PREP``) at the
+    step's start, middle and end."""
     k1 = DERIV_C(y, c0, p)
     yt = y
     for j in range(len(y)):
@@ -80,6 +74,18 @@ def rk4_step(y, t, h, breaks, coefs, i, k, burn, p):
     for j in range(len(y)):
         out = tuple_setitem(out, j, y[j] + h6 * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j]))
     return out
+
+
+def rk4_step(y, t, h, breaks, coefs, i, k, burn, p):
+    """One classical RK4 step of length h from (t, y)."""
+    u0 = control_in(breaks, coefs, i, k, t, burn)
+    u1 = control_in(breaks, coefs, i, k, t + 0.5 * h, burn)
+    u2 = control_in(breaks, coefs, i, k, t + h, burn)
+    # the control's trigonometry once per distinct value: a held control costs one sin/cos
+    c0 = PREP(u0)
+    c1 = c0 if u1 == u0 else PREP(u1)
+    c2 = c1 if u2 == u1 else PREP(u2)
+    return rk4_core(y, h, c0, c1, c2, p)
 
 
 def event_value(kind, y, t, breaks, coefs, i, k, burn, p, r_stop, m_dry):
@@ -169,11 +175,15 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
         if stop_at_speed_min:
             g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn, p, rs, m_dry)
         s_done = 0
+        carry = False
+        u0 = UZERO
+        c0 = PREP(u0)
         for s in range(n_steps):
             t_next = t0[i] + (s + 1) * h
             k_new = segment_at(breaks, coefs, i, k, t)
             if k_new != k:
                 k = k_new
+                carry = False
                 # a speed minimum is judged under a held control: restart the speed-rate
                 # sign at the new segment (a kink at the break itself is not an event)
                 if stop_at_speed_min:
@@ -181,7 +191,16 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
                                           rs, m_dry)
             while True:
                 hh = t_next - t
-                y1 = rk4_step(y, t, hh, breaks, coefs, i, k, burn, p)
+                # The control at the step's start is the one the previous full step ended with
+                # (same segment, same burn): carried over, its trigonometry is not redone.
+                if not carry:
+                    u0 = control_in(breaks, coefs, i, k, t, burn)
+                    c0 = PREP(u0)
+                u1 = control_in(breaks, coefs, i, k, t + 0.5 * hh, burn)
+                u2 = control_in(breaks, coefs, i, k, t + hh, burn)
+                c1 = c0 if u1 == u0 else PREP(u1)
+                c2 = c1 if u2 == u1 else PREP(u2)
+                y1 = rk4_core(y, hh, c0, c1, c2, p)
                 kind = EVENT_NONE
                 best = hh
                 if burn > 0.0 and MASS(y1) <= m_dry:
@@ -226,7 +245,11 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
                     y = y1
                     t = t_next
                     g_speed = g1s
+                    u0 = u2
+                    c0 = c2
+                    carry = True
                     break
+                carry = False
                 y = rk4_step(y, t, best, breaks, coefs, i, k, burn, p)
                 t = t + best
                 if kind == EVENT_FUEL:

@@ -55,7 +55,7 @@ _PARALLEL_MIN_BATCH = 32
 # Inlined at numba-IR level on the hot path; the rarely called event code is left as calls to
 # keep compile time down.
 _INLINED: tuple[str, ...] = ()
-_TEMPLATE_FUNCTIONS = ("control_in", "segment_at", "rk4_step", "event_value",
+_TEMPLATE_FUNCTIONS = ("control_in", "segment_at", "rk4_core", "rk4_step", "event_value",
                        "is_after", "locate", "propagate")
 
 
