@@ -210,6 +210,41 @@ class LanderBatch:
                 "touchdown_speed_m_s": speed, "miss_distance_m": miss, "is_success": success}
 
 
+def init_task(task, sc, *, dt_s: float, substeps: int, time_limit_s: float | None,
+              max_fall_s: float | None, throttle_channel: bool, success_speed_m_s: float,
+              cutoff_speed_m_s: float, **positive: float) -> None:
+    """Validate and set what both landing tasks share (timing, tolerances, scaled constants).
+
+    ``positive`` names further settings that must be finite and > 0 (e.g. ``success_miss_m``).
+    Raises ValueError naming the setting and its value.
+    """
+    checks = dict(dt_s=dt_s, success_speed_m_s=success_speed_m_s,
+                  cutoff_speed_m_s=cutoff_speed_m_s, **positive)
+    for name, v in checks.items():
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError(f"{name} = {v!r} must be finite and > 0")
+    if int(substeps) < 1:
+        raise ValueError(f"substeps = {substeps!r} must be >= 1")
+    task.scenario = sc
+    task.scaling = s = sc.scaling()
+    task.params = sc.params(s)
+    task.params_array = task.params.as_array()
+    task.dt_s = float(dt_s)
+    task.substeps = int(substeps)
+    task.dt_nd = float(s.time_nd(task.dt_s))
+    task.h_nd = task.dt_nd / task.substeps
+    task.time_limit_s = float(time_limit_s if time_limit_s is not None
+                              else 1.5 * sc.tf_bounds_s[1])
+    if not task.time_limit_s >= task.dt_s:
+        raise ValueError(f"time_limit_s = {time_limit_s!r} must be >= dt_s = {dt_s!r}")
+    task.max_fall_s = float(max_fall_s if max_fall_s is not None else task.time_limit_s)
+    task.n_fall = fall_steps(task.max_fall_s, task.dt_s / task.substeps)
+    task.throttle_channel = bool(throttle_channel)
+    task.success_speed_m_s = float(success_speed_m_s)
+    task.cutoff_speed_m_s = float(cutoff_speed_m_s)
+    task.dry_mass_nd = float(s.mass_nd(sc.vehicle.dry_mass_kg))
+
+
 def fall_steps(max_fall_s: float, h_s: float) -> int:
     """Number of RK4 steps of length ``h_s`` covering ``max_fall_s``."""
     return max(1, int(math.ceil(max_fall_s / h_s - 1e-9)))

@@ -16,7 +16,7 @@ from .. import dynamics as dyn
 from .. import integrators as integ
 from ..scenarios import PinpointScenario, get_scenario
 from ._base import LanderEnv, LanderVectorEnv, box
-from ._core import fall_steps
+from ._core import init_task
 
 __all__ = ["LunarPinpointLandingEnv", "LunarPinpointLandingVectorEnv", "angles_from_action",
            "action_from_angles"]
@@ -97,37 +97,17 @@ class _PinpointTask:
         if not isinstance(sc, PinpointScenario):
             raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not a pinpoint scenario; "
                              "LunarPinpointLanding-v0 needs a PinpointScenario ('peng2012')")
-        for name, v in (("dt_s", dt_s), ("success_speed_m_s", success_speed_m_s),
-                        ("success_miss_m", success_miss_m), ("cutoff_speed_m_s",
-                                                             cutoff_speed_m_s)):
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} = {v!r} must be finite and > 0")
-        if int(substeps) < 1:
-            raise ValueError(f"substeps = {substeps!r} must be >= 1")
-        self.scenario = sc
-        self.scaling = s = sc.scaling()
-        self.params = sc.params(s)
-        self.params_array = self.params.as_array()
+        init_task(self, sc, dt_s=dt_s, substeps=substeps, time_limit_s=time_limit_s,
+                  max_fall_s=max_fall_s, throttle_channel=throttle_channel,
+                  success_speed_m_s=success_speed_m_s, cutoff_speed_m_s=cutoff_speed_m_s,
+                  success_miss_m=success_miss_m)
+        s = self.scaling
         self.plane_normal = np.asarray(self.params.plane_normal)
-        self.dt_s = float(dt_s)
-        self.substeps = int(substeps)
-        self.dt_nd = float(s.time_nd(self.dt_s))
-        self.h_nd = self.dt_nd / self.substeps
-        self.time_limit_s = float(time_limit_s if time_limit_s is not None
-                                  else 1.5 * sc.tf_bounds_s[1])
-        if not self.time_limit_s >= self.dt_s:
-            raise ValueError(f"time_limit_s = {time_limit_s!r} must be >= dt_s = {dt_s!r}")
-        self.max_fall_s = float(max_fall_s if max_fall_s is not None else self.time_limit_s)
-        self.n_fall = fall_steps(self.max_fall_s, self.dt_s / self.substeps)
-        self.throttle_channel = bool(throttle_channel)
-        self.success_speed_m_s = float(success_speed_m_s)
         self.success_miss_m = float(success_miss_m)
-        self.cutoff_speed_m_s = float(cutoff_speed_m_s)
         self.surface_radius_nd = 1.0 * float(s.length_nd(sc.body.radius_m))
         # terminal gate: the sphere through the target ([001] ends at hf = 2 km above it)
         self.r_stop_nd = float(s.length_nd(sc.body.radius_m + sc.target.altitude_m))
         self.target_nd = s.length_nd(sc.target_position_m())
-        self.dry_mass_nd = float(s.mass_nd(sc.vehicle.dry_mass_kg))
         self.mass_ref_kg = s.mass_kg
         self.time_ref_s = s.time_s
         self.length_ref_m = s.length_m

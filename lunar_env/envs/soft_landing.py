@@ -14,7 +14,7 @@ import numpy as np
 from .. import integrators as integ
 from ..scenarios import PlanarScenario, get_scenario
 from ._base import LanderEnv, LanderVectorEnv, box
-from ._core import fall_steps
+from ._core import init_task
 
 __all__ = ["LunarSoftLandingEnv", "LunarSoftLandingVectorEnv", "thrust_angle_from_action",
            "action_from_thrust_angle", "MAX_THRUST_ANGLE_RAD"]
@@ -52,32 +52,12 @@ class _PlanarTask:
         if not isinstance(sc, PlanarScenario):
             raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not planar; "
                              "LunarSoftLanding-v0 needs a PlanarScenario (e.g. 'zhu2007')")
-        for name, v in (("dt_s", dt_s), ("success_speed_m_s", success_speed_m_s),
-                        ("cutoff_speed_m_s", cutoff_speed_m_s)):
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} = {v!r} must be finite and > 0")
-        if int(substeps) < 1:
-            raise ValueError(f"substeps = {substeps!r} must be >= 1")
-        self.scenario = sc
-        self.scaling = s = sc.scaling()
-        self.params = sc.params(s)
-        self.params_array = self.params.as_array()
-        self.dt_s = float(dt_s)
-        self.substeps = int(substeps)
-        self.dt_nd = float(s.time_nd(self.dt_s))
-        self.h_nd = self.dt_nd / self.substeps
-        self.time_limit_s = float(time_limit_s if time_limit_s is not None
-                                  else 1.5 * sc.tf_bounds_s[1])
-        if not self.time_limit_s >= self.dt_s:
-            raise ValueError(f"time_limit_s = {time_limit_s!r} must be >= dt_s = {dt_s!r}")
-        self.max_fall_s = float(max_fall_s if max_fall_s is not None else self.time_limit_s)
-        self.n_fall = fall_steps(self.max_fall_s, self.dt_s / self.substeps)
-        self.throttle_channel = bool(throttle_channel)
-        self.success_speed_m_s = float(success_speed_m_s)
+        init_task(self, sc, dt_s=dt_s, substeps=substeps, time_limit_s=time_limit_s,
+                  max_fall_s=max_fall_s, throttle_channel=throttle_channel,
+                  success_speed_m_s=success_speed_m_s, cutoff_speed_m_s=cutoff_speed_m_s)
+        s = self.scaling
         self.success_miss_m = math.inf
-        self.cutoff_speed_m_s = float(cutoff_speed_m_s)
         self.r_stop_nd = float(s.length_nd(sc.surface_radius_m))
-        self.dry_mass_nd = float(s.mass_nd(sc.vehicle.dry_mass_kg))
         self.mass_ref_kg = s.mass_kg
         self.time_ref_s = s.time_s
         self.length_ref_m = s.length_m
