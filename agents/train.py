@@ -416,6 +416,19 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
     for key in ("n_timesteps", "n_envs"):
         if key not in hp:
             raise ValueError(f"{hp_file}: entry {args.env!r} lacks {key!r}")
+    if args.init_from and "obs_features" not in overrides:
+        # The initial policy fixes the network's inputs: a run fine-tuned from it observes what
+        # it observed (e.g. a behaviour-cloning policy trained on the env's raw observation).
+        ip = Path(args.init_from)
+        init_dir = ip if ip.is_dir() else (ip.parent.parent if ip.parent.name == "checkpoints"
+                                           else ip.parent)
+        init_cfg = init_dir / "config.yml"
+        init_hp = (yaml.safe_load(init_cfg.read_text()) if init_cfg.exists() else None) or {}
+        init_feats = list(init_hp.get("obs_features") or [])
+        if list(hp.get("obs_features") or []) != init_feats:
+            print(f"--init-from {args.init_from}: obs_features set to {init_feats} (those of the "
+                  "initial policy)")
+            hp["obs_features"] = init_feats
     hp["n_timesteps"] = int(float(hp["n_timesteps"]))
     hp["n_envs"] = int(hp["n_envs"])
     if hp["n_timesteps"] < 1:
