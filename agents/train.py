@@ -20,6 +20,13 @@ command-line flags override them. Each run directory ``<log-folder>/<algo>/<env 
 - ``tb/`` TensorBoard logs, ``model.zip`` and ``vecnormalize.pkl`` (the final model);
 - ``evaluation/`` the comparison against the optimiser baselines (``agents.evaluate``).
 
+Agents-side additions selected by YAML keys of the entry (recorded in ``config.yml``):
+``curriculum`` (start states from optimal trajectories, :mod:`agents.curriculum`),
+``obs_features`` (derived inputs appended to the observation, :mod:`agents.features`; re-applied
+by :class:`agents.evaluate.SB3Policy` when a run is loaded) and ``reward_shaping``
+(potential-based, policy-invariant, training only, :mod:`agents.shaping`). The env's own
+observation and reward are never changed.
+
 Training runs on the natively batched vector env (all landers stepped in one call of the dynamics
 core) through the SB3 adapter :func:`agents.vec_env.make_sb3_vec_env`, not on a
 ``SubprocVecEnv`` of single envs. Envs that are not ours (any other Gymnasium id) fall back to
