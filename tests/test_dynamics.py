@@ -75,7 +75,9 @@ def test_mass_follows_rocket_equation_and_burn_ends_at_dry_mass():
     # Tsiolkovsky in SI: fuel = m0 (1 - exp(-Δv/c)) with Δv = ∫F/m dt
     tt = np.linspace(0, t_burn, 20001)
     dv = np.trapezoid(p.thrust_nd / (1.0 - p.thrust_nd / p.exhaust_velocity_nd * tt), tt)
-    assert 1.0 - dry == pytest.approx(1.0 - math.exp(-dv / p.exhaust_velocity_nd), rel=1e-8)
+    propellant_fraction = 1.0 - dry
+    assert propellant_fraction == pytest.approx(1.0 - math.exp(-dv / p.exhaust_velocity_nd),
+                                                rel=1e-8)
 
 
 def test_moon3d_without_rotation_matches_planar_model():
