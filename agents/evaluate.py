@@ -54,7 +54,7 @@ import numpy as np
 
 __all__ = ["Policy", "SB3Policy", "OpenLoopPolicy", "ExpertPolicy", "PolicyResult",
            "initial_states", "rollout", "optimal_solutions", "compare", "markdown_table",
-           "plot_comparison", "evaluate_run", "main"]
+           "plot_comparison", "evaluate_run", "publish_report", "main"]
 
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
 DEFAULT_N_STATES = 1000
@@ -678,6 +678,21 @@ def evaluate_run(run_dir: str | Path, n_states: int = DEFAULT_N_STATES, seed: in
     return report
 
 
+def publish_report(report: dict, out: str | Path, json_path: str | None = None) -> dict:
+    """Write the report files to ``out`` (and the JSON to ``json_path``), print the table.
+
+    Returns the written paths.
+    """
+    paths = write_report(report, out)
+    if json_path:
+        Path(json_path).write_text(json.dumps(_json_report(report), indent=1))
+    print()
+    print(markdown_table(report))
+    print()
+    print("Written: " + ", ".join(str(p) for p in paths.values()))
+    return paths
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry point (``python -m agents.evaluate``)."""
     p = argparse.ArgumentParser(prog="python -m agents.evaluate", description=__doc__.split(
@@ -723,13 +738,7 @@ def main(argv: list[str] | None = None) -> int:
     report = compare(env_id, policies, n_states=args.n_states, seed=args.seed,
                      env_kwargs=env_kwargs, open_loop=not args.no_open_loop,
                      n_expert_states=args.expert_states, trace_cases=args.trace_cases)
-    paths = write_report(report, args.out or Path("results") / "evaluate")
-    if args.json:
-        Path(args.json).write_text(json.dumps(_json_report(report), indent=1))
-    print()
-    print(markdown_table(report))
-    print()
-    print("Written: " + ", ".join(str(p) for p in paths.values()))
+    publish_report(report, args.out or Path("results") / "evaluate", args.json)
     return 0
 
 

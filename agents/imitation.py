@@ -235,15 +235,9 @@ def _split_by_trajectory(ds, val_fraction: float, rng: np.random.Generator):
 
 
 def _new_run_dir(log_folder: str, mode: str, env_id: str) -> Path:
-    parent = Path(log_folder) / "imitation"
-    parent.mkdir(parents=True, exist_ok=True)
-    k = 1
-    pat = re.compile(rf"^{mode}_{re.escape(env_id)}_(\d+)$")
-    for d in parent.iterdir():
-        m = pat.match(d.name)
-        if m:
-            k = max(k, int(m.group(1)) + 1)
-    return parent / f"{mode}_{env_id}_{k}"
+    from agents.train import next_run_dir
+
+    return next_run_dir(Path(log_folder) / "imitation", f"{mode}_{env_id}")
 
 
 def _logger(run_dir: Path, tensorboard: bool):
@@ -751,7 +745,7 @@ def _evaluate_cli(args) -> int:
     merged into one table. The optimiser baselines (open-loop replay, re-planning expert) run
     with the first configuration; the open-loop replay also with every other one.
     """
-    from agents.evaluate import SB3Policy, _json_report, compare, markdown_table, write_report
+    from agents.evaluate import SB3Policy, compare, publish_report
 
     groups: dict[str, tuple[dict[str, Any], list]] = {}
     for item in args.model:
@@ -778,13 +772,7 @@ def _evaluate_cli(args) -> int:
     report["rows"] = [r for rep in reports for r in rep["rows"]]
     report["results"] = [r for rep in reports for r in rep["results"]]
     report["env_kwargs_groups"] = [kw for kw, _ in groups.values()]
-    paths = write_report(report, args.out)
-    if args.json:
-        Path(args.json).write_text(json.dumps(_json_report(report), indent=1))
-    print()
-    print(markdown_table(report))
-    print()
-    print("Written: " + ", ".join(str(p) for p in paths.values()))
+    publish_report(report, args.out, args.json)
     return 0
 
 

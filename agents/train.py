@@ -344,16 +344,21 @@ def latest_checkpoint(run_dir: str | Path) -> tuple[Path, int]:
     return path, steps
 
 
-def _new_run_dir(log_folder: str, algo: str, env_id: str) -> Path:
-    parent = Path(log_folder) / algo
+def next_run_dir(parent: str | Path, prefix: str) -> Path:
+    """``parent/<prefix>_<k>`` with k one past the highest existing index (1 if none)."""
+    parent = Path(parent)
     parent.mkdir(parents=True, exist_ok=True)
     k = 1
-    pattern = re.compile(rf"^{re.escape(env_id)}_(\d+)$")
+    pattern = re.compile(rf"^{re.escape(prefix)}_(\d+)$")
     for d in parent.iterdir():
         m = pattern.match(d.name)
         if m:
             k = max(k, int(m.group(1)) + 1)
-    return parent / f"{env_id}_{k}"
+    return parent / f"{prefix}_{k}"
+
+
+def _new_run_dir(log_folder: str, algo: str, env_id: str) -> Path:
+    return next_run_dir(Path(log_folder) / algo, env_id)
 
 
 def load_trained(run_dir_or_model: str | Path, env=None, device: str = "cpu"):
