@@ -256,7 +256,7 @@ class ExpertPolicy:
         self.active: np.ndarray | None = None
 
     def reset(self, venv, case_ids: np.ndarray) -> None:
-        from optimizers.pontryagin import PontryaginExpert
+        from agents.experts import PontryaginExpert
 
         self.experts = [PontryaginExpert(self.scenario, **self.expert_kwargs)
                         for _ in range(len(case_ids))]

@@ -388,9 +388,9 @@ def _label_chunk(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
     import warnings
 
     from agents.evaluate import planar_state_si
+    from agents.experts import PontryaginExpert
     from lunar_env import get_scenario
     from lunar_env.envs.soft_landing import action_from_thrust_angle
-    from optimizers.pontryagin import PontryaginExpert
 
     sc = get_scenario(job["scenario"])
     dt_s = float(job["dt_s"])

@@ -34,11 +34,8 @@ import numpy as np
 from lunar_env import get_scenario
 from lunar_env.dynamics import planar_eom
 from lunar_env.integrators import PLANAR, integrate_reference
-from optimizers.asaga import ASAGA
+from optimizers.evolutionary.asaga import ASAGA
 from optimizers.problems.landing import PenalisedProblem, PlanarLandingProblem
-
-SPEED_TOL_M_S = 0.5
-RADIUS_TOL_M = 1.0
 
 
 def _pygmo_run(name: str, pen: PenalisedProblem, budget: int, seed: int, n_pop: int = 20):
@@ -64,7 +61,7 @@ def _summarise(problem: PlanarLandingProblem, xs, walls, fevals, optimum):
     F = problem.batch_fitness(np.asarray(xs))
     speed = np.hypot(F[:, 1], F[:, 2])
     dr = np.abs(F[:, 3])
-    ok = (speed < SPEED_TOL_M_S) & (dr < RADIUS_TOL_M)
+    ok = np.array([problem.assess(x, f).success for x, f in zip(xs, F, strict=True)])
     gap = F[:, 0] - optimum
     return {
         "success_rate": float(ok.mean()),
@@ -80,7 +77,7 @@ def _summarise(problem: PlanarLandingProblem, xs, walls, fevals, optimum):
 
 
 def bench_optimizers(n_seeds: int, budget: int | None, n_generations: int) -> dict:
-    from optimizers.pontryagin import solve_planar_min_fuel
+    from optimizers.indirect.planar import solve_planar_min_fuel
 
     scenario = get_scenario("zhu2007")
     problem = PlanarLandingProblem(scenario)
@@ -94,8 +91,9 @@ def bench_optimizers(n_seeds: int, budget: int | None, n_generations: int) -> di
     asaga_fevals = None
     for label, units in variants:
         xs, walls, fev = [], [], []
+        variant = PlanarLandingProblem(scenario, penalty_units=units)
         for s in range(n_seeds):
-            r = ASAGA(n_generations=n_generations, fitness_units=units).solve(problem, seed=s)
+            r = ASAGA(n_generations=n_generations).solve(variant, seed=s)
             xs.append(r.x)
             walls.append(r.wall_s)
             fev.append(r.n_fevals)

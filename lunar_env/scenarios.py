@@ -22,6 +22,7 @@ import numpy as np
 
 from .dynamics import Moon3DParams, PlanarParams
 from .scaling import Scaling
+from .states import check_planar_state_si, planar_nd_to_si, planar_si_to_nd
 from .validation import require_finite, require_finite_positive, require_range
 
 __all__ = [
@@ -263,16 +264,18 @@ class PlanarScenario:
         ], axis=1)
 
     def si_to_nd(self, si: np.ndarray, scaling: Scaling | None = None) -> np.ndarray:
-        """SI rows (r m, vr m/s, θ rad, v_t m/s, m kg) -> normalised (r, vr, θ, ω, m)."""
-        s = scaling or self.scaling()
-        si = np.asarray(si, dtype=np.float64)
-        out = np.empty_like(si)
-        out[..., 0] = s.length_nd(si[..., 0])
-        out[..., 1] = s.velocity_nd(si[..., 1])
-        out[..., 2] = si[..., 2]
-        out[..., 3] = s.rate_nd(si[..., 3] / si[..., 0])
-        out[..., 4] = s.mass_nd(si[..., 4])
-        return out
+        """SI rows (r m, vr m/s, θ rad, v_t m/s, m kg) -> normalised (r, vr, θ, ω, m)
+        (:func:`lunar_env.states.planar_si_to_nd`)."""
+        return planar_si_to_nd(si, scaling or self.scaling())
+
+    def nd_to_si(self, nd: np.ndarray, scaling: Scaling | None = None) -> np.ndarray:
+        """Normalised rows (r, vr, θ, ω, m) -> SI (r m, vr m/s, θ rad, v_t m/s, m kg)
+        (:func:`lunar_env.states.planar_nd_to_si`)."""
+        return planar_nd_to_si(nd, scaling or self.scaling())
+
+    def check_state_si(self, row, name: str = "initial_state_si") -> np.ndarray:
+        """Validate an SI row against this scenario (finite, r > 0, mass above the dry mass)."""
+        return check_planar_state_si(row, dry_mass_kg=self.vehicle.dry_mass_kg, name=name)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 
 from optimizers.asaga import ASAGA, paper_penalty_weights
+from optimizers.common.checkpoint import CheckpointMismatch
+from optimizers.common.problem import Problem
 from optimizers.problems.landing import PlanarLandingProblem
 
 
@@ -83,10 +85,11 @@ def test_seeded_runs_are_deterministic(problem):
 
 def test_short_run_improves_fitness(problem):
     # constant penalty weights: with elitism the best fitness can only grow
-    algo = ASAGA(n_generations=40, penalty_weights=lambda T, Tmax: (50.0, 10.0))
+    algo = ASAGA(n_generations=40, penalty_weight=lambda T, Tmax: 10.0)
     res = algo.solve(problem, seed=3)
-    h = res.history
+    h = res.extra["history_fitness"]
     assert len(h) == 40 and np.all(np.diff(h) >= -1e-12)
+    assert len(res.history) == 40 and res.n_iter == 40
     assert h[-1] > h[0]
     assert res.n_fevals >= 40 * 20
     assert res.fuel_kg == pytest.approx(problem.fitness(res.x)[0])
@@ -102,9 +105,60 @@ def test_checkpoint_resume_equals_uninterrupted(problem, tmp_path):
                       callback=lambda T, s: T == 6)  # "interrupted" after generation 6
     assert part.extra["n_generations"] == 6
     # the checkpoint on disk is at generation 4; resuming repeats 5..12 with the saved stream
-    resumed = ASAGA(n_generations=12).solve(problem, seed=999, checkpoint=ck)
+    resumed = ASAGA(n_generations=12).solve(problem, seed=5, checkpoint=ck)
     np.testing.assert_array_equal(resumed.x, full.x)
     np.testing.assert_array_equal(resumed.history, full.history)
+    assert resumed.n_fevals == full.n_fevals
+
+
+def test_checkpoint_of_another_run_is_refused(problem, tmp_path):
+    # issue 18 item 6: a finished zhu2007 checkpoint used to answer for wang2003, and a
+    # checkpoint of a longer run resumed with fewer generations returned fitness -2.3e36
+    ck = tmp_path / "asaga.pkl"
+    ASAGA(n_generations=4).solve(problem, seed=5, checkpoint=ck)
+    with pytest.raises(CheckpointMismatch, match="problem"):
+        ASAGA(n_generations=4).solve(PlanarLandingProblem("wang2003"), seed=5, checkpoint=ck)
+    with pytest.raises(CheckpointMismatch, match="n_generations"):
+        ASAGA(n_generations=2).solve(problem, seed=5, checkpoint=ck)
+    with pytest.raises(CheckpointMismatch, match="seed"):
+        ASAGA(n_generations=4).solve(problem, seed=6, checkpoint=ck)
+    ck.write_bytes(ck.read_bytes()[:40])  # damaged file: a clear error naming it
+    with pytest.raises(ValueError, match="damaged"):
+        ASAGA(n_generations=4).solve(problem, seed=5, checkpoint=ck)
+
+
+class _Infeasible(Problem):
+    """min x0² + x1² s.t. x0 + x1 = 10 on [-1, 1]²: no feasible point."""
+
+    def get_bounds(self):
+        return np.array([-1.0, -1.0]), np.array([1.0, 1.0])
+
+    def get_nec(self):
+        return 1
+
+    def _batch_fitness(self, X):
+        return np.stack([(X**2).sum(1), X.sum(1) - 10.0], axis=1)
+
+
+class _NaNProblem(_Infeasible):
+    def _batch_fitness(self, X):
+        return np.full((len(X), 2), np.nan)
+
+
+class _Reversed(_Infeasible):
+    def get_bounds(self):
+        return np.array([1.0, -1.0]), np.array([-1.0, 1.0])
+
+
+def test_no_false_success():
+    # issue 18 item 5: success used to be True whatever the problem said
+    res = ASAGA(n_generations=5).solve(_Infeasible(), seed=0)
+    assert not res.success and not res.feasible
+    assert res.terminal_errors["eq_0"] <= -8.0 + 1e-9
+    res = ASAGA(n_generations=3).solve(_NaNProblem(), seed=0)
+    assert not res.success and "not finite" in res.message
+    with pytest.raises(ValueError, match="reversed"):
+        ASAGA(n_generations=3).solve(_Reversed(), seed=0)
 
 
 def test_trajectory_on_request_and_progress(problem, capsys):
@@ -127,5 +181,9 @@ def test_bad_settings_raise():
         ASAGA(n_pop=21)
     with pytest.raises(ValueError, match="kappa"):
         ASAGA(kappa=1.5)
-    with pytest.raises(ValueError, match="fitness_units"):
-        ASAGA(fitness_units="kg")
+    with pytest.raises(ValueError, match="r1_start"):
+        ASAGA(r1_start=float("nan"))
+    with pytest.raises(ValueError, match="delta_start"):
+        ASAGA(delta_start=-5)
+    with pytest.raises(ValueError, match="anneal_result"):
+        ASAGA(anneal_result="worst")

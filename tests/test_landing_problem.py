@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from lunar_env.integrators import PLANAR, integrate_reference
+from optimizers.evolutionary.penalties import penalised_fitness
 from optimizers.problems.landing import DEFAULT_N_STEPS, PenalisedProblem, PlanarLandingProblem
 
 # Near the optimum of the cubic parameterisation (input only: found once by SLSQP; the node
@@ -99,15 +100,30 @@ def test_gradient_matches_differences(problem):
     assert J[0, -1] == pytest.approx(problem.scenario.vehicle.mass_flow_kg_s, rel=1e-6)
 
 
-def test_penalty_fitness_is_eq11(problem):
+def test_penalised_fitness_is_eq11(problem):
+    # [000] eq. (11) up to a constant: −σ1·|ΔV|/v_ref − σ2·|Δr|/L + m(tf)/m0 with σ1 = 5σ2
     F = np.array([[277.0, 3.0, -4.0, 20.0]])
     s = problem.scaling
     expect = -50.0 * 5.0 / s.velocity_m_s - 10.0 * 20.0 / s.length_m + (600 - 277) / 600
-    assert problem.penalty_fitness(F, 50.0, 10.0)[0] == pytest.approx(expect, rel=1e-12)
-    assert problem.penalty_fitness(F, 50.0, 10.0, units="si")[0] == pytest.approx(
-        -250.0 - 200.0 + 323.0)
-    with pytest.raises(ValueError, match="units"):
-        problem.penalty_fitness(F, 1, 1, units="km")
+    assert penalised_fitness(problem, F, 10.0)[0] + 1.0 == pytest.approx(expect, rel=1e-12)
+    si = PlanarLandingProblem(penalty_units="si")
+    assert penalised_fitness(si, F, 10.0)[0] == pytest.approx(-250.0 - 200.0 - 277.0)
+    with pytest.raises(ValueError, match="penalty_units"):
+        PlanarLandingProblem(penalty_units="km")
+
+
+def test_problem_decides_success(problem):
+    ok = problem.assess(X_NEAR_OPT)
+    assert set(ok.terminal_errors) == {"radial_velocity_m_s", "tangential_velocity_m_s",
+                                       "speed_m_s", "radius_m"}
+    assert ok.fuel_kg == pytest.approx(problem.fitness(X_NEAR_OPT)[0])
+    assert ok.tf_s == X_NEAR_OPT[-1]
+    assert ok.success == (ok.terminal_errors["speed_m_s"] < 0.5
+                          and abs(ok.terminal_errors["radius_m"]) < 1.0)
+    far = X_NEAR_OPT.copy()
+    far[-1] -= 20.0  # 20 s short of the landing: tens of m/s left
+    bad = problem.assess(far)
+    assert not bad.success and "NOT met" in bad.message
 
 
 def test_bad_input_raises():

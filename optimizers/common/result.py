@@ -5,6 +5,7 @@ Non-convergence is a value (``success=False`` and a ``message``), not an excepti
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,27 +43,42 @@ class Trajectory:
 
 @dataclass
 class OptimResult:
-    """Outcome of one optimiser run.
+    """Outcome of one solver run; every solver in :mod:`optimizers` returns one.
+
+    Every field means the same for every solver:
 
     Attributes
     ----------
     x : ndarray, shape (dim,)
-        Best decision vector.
+        Best decision vector (solver-specific layout; :meth:`Problem.decode` reads it).
     fuel_kg : float
-        Propellant used.
+        Propellant used (NaN when the problem has no fuel).
     tf_s : float
-        Final time.
+        Final time (NaN when the problem has none).
     terminal_errors : dict of str -> float
-        SI terminal errors, e.g. ``{"speed_m_s": .., "radius_m": ..}``.
-    history : ndarray
-        Best objective (or fitness) per generation / iteration.
+        SI terminal errors under the problem's named keys (``speed_m_s``, ``radius_m``, ...).
+    history : ndarray, shape (n_iter,) or (n_iter + 1,)
+        Best objective (the problem's, minimised) per generation or solver iteration.
     n_fevals : int
+        Objective evaluations (fitness rows for black-box solvers; objective calls of the NLP
+        solver; integrations of the state–costate system for shooting).
     wall_s : float
     success : bool
+        Decided by the problem (its terminal and path conditions), never by the algorithm.
     message : str
     trajectory : Trajectory or None
     extra : dict
-        Solver-specific details.
+        Solver-specific details (documented by each solver).
+    n_iter : int
+        Generations (evolutionary) or solver iterations (Newton, IPOPT).
+    fun : float
+        Objective value at ``x`` (the problem's, minimised).
+    feasible : bool or None
+        Every constraint within the problem's tolerance (None when not assessed).
+    constraint_violation : float
+        Largest violation beyond the tolerance (0 when feasible).
+    algorithm, problem : str
+        Names of the solver and of the problem.
     """
 
     x: np.ndarray
@@ -76,3 +92,27 @@ class OptimResult:
     message: str
     trajectory: Trajectory | None = None
     extra: dict = field(default_factory=dict)
+    n_iter: int = 0
+    fun: float = math.nan
+    feasible: bool | None = None
+    constraint_violation: float = math.nan
+    algorithm: str = ""
+    problem: str = ""
+
+    @classmethod
+    def from_assessment(cls, assessment, x: np.ndarray, *, history, n_fevals: int, n_iter: int,
+                        wall_s: float, message: str = "", algorithm: str = "",
+                        problem: str = "", trajectory: Trajectory | None = None,
+                        extra: dict | None = None) -> OptimResult:
+        """Build a result whose verdict is the problem's :class:`~optimizers.common.problem.
+        Assessment` (success, terminal errors, fuel and tf come from it)."""
+        verdict = assessment.message
+        msg = f"{message}; {verdict}" if message and verdict else (message or verdict)
+        return cls(x=np.asarray(x, dtype=np.float64).copy(), fuel_kg=float(assessment.fuel_kg),
+                   tf_s=float(assessment.tf_s), terminal_errors=dict(assessment.terminal_errors),
+                   history=np.asarray(history, dtype=np.float64), n_fevals=int(n_fevals),
+                   wall_s=float(wall_s), success=bool(assessment.success), message=msg,
+                   trajectory=trajectory, extra=dict(extra or {}), n_iter=int(n_iter),
+                   fun=float(assessment.objective), feasible=bool(assessment.feasible),
+                   constraint_violation=float(assessment.constraint_violation),
+                   algorithm=algorithm, problem=problem)

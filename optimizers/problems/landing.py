@@ -45,11 +45,13 @@ from lunar_env import get_scenario
 from lunar_env.integrators import PLANAR, integrate, integrate_prepared
 from lunar_env.scenarios import PlanarScenario
 
-from ..common.problem import Problem
+from ..common.problem import PenaltyGroup, Problem
 from ..common.result import Trajectory
 from ..parameterisations import NodePolynomial
 
 __all__ = ["PlanarLandingProblem", "PenalisedProblem", "DEFAULT_N_STEPS"]
+
+from ..evolutionary.penalties import PenalisedProblem  # noqa: E402  (re-export, 0.1 API)
 
 DEFAULT_N_STEPS = 100
 # same threshold as lunar_env.integrators.integrate: threads cost more than they save below it
@@ -85,6 +87,15 @@ class PlanarLandingProblem(Problem):
         Force the threaded or the serial RK4 kernel in :meth:`batch_fitness` (default: threaded
         for batches of 32 or more, as :func:`lunar_env.integrators.integrate`; on a heavily
         shared machine the serial kernel can be faster).
+    speed_tol_m_s, radius_tol_m : float
+        The problem's success criterion (:meth:`assess`): a landing *succeeds* when the terminal
+        speed error is below ``speed_tol_m_s`` and the radius error below ``radius_tol_m``
+        ([000]'s convergence claim: 0.5 m/s and 1 m).
+    penalty_units : {"normalised", "si"}
+        Units of the penalised fitness of [000] eq. (11) that the GAs maximise
+        (:meth:`penalty_groups`): ``"normalised"`` (the paper's §2 units, default:
+        m(tf)/m0, velocities / sqrt(μ/r0), radius / r0) or ``"si"`` (kg, m/s, m; the reading
+        under which ASAGA's T0 = 10000 has the size of the early penalties).
 
     Raises
     ------
@@ -98,7 +109,8 @@ class PlanarLandingProblem(Problem):
                  objective: str = "fuel", initial_state_si=None, node_upper_deg=None,
                  node_lower_deg=None, tf_bounds_s: tuple[float, float] | None = None,
                  velocity_scale_m_s: float = 1.0, radius_scale_m: float = 1.0,
-                 parallel: bool | None = None) -> None:
+                 parallel: bool | None = None, speed_tol_m_s: float = 0.5,
+                 radius_tol_m: float = 1.0, penalty_units: str = "normalised") -> None:
         super().__init__()
         sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
         if getattr(sc, "model", None) != "planar":
@@ -109,9 +121,15 @@ class PlanarLandingProblem(Problem):
         n_steps = int(n_steps)
         if n_steps < 1:
             raise ValueError(f"n_steps = {n_steps} must be >= 1")
-        if not (velocity_scale_m_s > 0 and radius_scale_m > 0):
-            raise ValueError("velocity_scale_m_s and radius_scale_m must be > 0, got "
-                             f"{velocity_scale_m_s!r}, {radius_scale_m!r}")
+        for name, v in dict(velocity_scale_m_s=velocity_scale_m_s, radius_scale_m=radius_scale_m,
+                            speed_tol_m_s=speed_tol_m_s, radius_tol_m=radius_tol_m).items():
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} = {v!r} must be a finite number > 0")
+        if penalty_units not in ("normalised", "si"):
+            raise ValueError(f"penalty_units = {penalty_units!r}; use 'normalised' or 'si'")
+        self.speed_tol_m_s = float(speed_tol_m_s)
+        self.radius_tol_m = float(radius_tol_m)
+        self.penalty_units = penalty_units
         self.scenario = sc
         self.parameterisation = parameterisation or NodePolynomial(10, 3)
         self.n_steps = n_steps
@@ -125,11 +143,7 @@ class PlanarLandingProblem(Problem):
         if initial_state_si is None:
             self.y0_nd = sc.state_nd(scaling=self.scaling)
         else:
-            y = np.asarray(initial_state_si, dtype=np.float64)
-            if y.shape != (5,) or not np.all(np.isfinite(y)):
-                raise ValueError(f"initial_state_si must be 5 finite SI values (r, vr, θ, vt, m); "
-                                 f"got {initial_state_si!r}")
-            self.y0_nd = sc.si_to_nd(y, self.scaling)
+            self.y0_nd = sc.si_to_nd(sc.check_state_si(initial_state_si), self.scaling)
         self.dry_mass_nd = float(self.scaling.mass_nd(sc.vehicle.dry_mass_kg))
         n = self.parameterisation.n_nodes
         lo = np.zeros(n) if node_lower_deg is None else np.asarray(node_lower_deg, float)
@@ -250,47 +264,57 @@ class PlanarLandingProblem(Problem):
         d = x.size
         return ((F[:d] - F[d:]) / (2 * h[:, None])).T
 
-    # ---- penalties for GAs ----------------------------------------------------------------
+    # ---- the problem's verdict and penalty --------------------------------------------------
+    @property
+    def objective_scale(self) -> float:
+        """Objective divisor of the penalised fitness: m0 (kg) for the fuel objective in
+        normalised units, so −fuel/m0 is m(tf)/m0 up to a constant ([000] eq. 11)."""
+        si = self.penalty_units == "si"
+        if self.objective == "fuel":
+            return 1.0 if si else self.scaling.mass_kg
+        return 1.0 / self.scaling.mass_kg if si else 1.0
+
+    def penalty_groups(self) -> list[PenaltyGroup]:
+        """[000] eq. (11): σ1·|ΔV| (σ1 = 5σ2) and σ2·|Δr|, in the units of ``penalty_units``."""
+        s = self.scaling
+        v_unit = 1.0 if self.penalty_units == "si" else s.velocity_m_s
+        r_unit = 1.0 if self.penalty_units == "si" else s.length_m
+        return [PenaltyGroup("velocity", eq=(0, 1), factor=5.0,
+                             scale=v_unit / self.velocity_scale_m_s),
+                PenaltyGroup("radius", eq=(2,), factor=1.0, scale=r_unit / self.radius_scale_m)]
+
+    def terminal_errors(self, x: np.ndarray, f: np.ndarray) -> dict[str, float]:
+        """SI terminal errors from a fitness row: radial and tangential velocity, their norm
+        ``speed_m_s``, and ``radius_m`` (r(tf) − r_f)."""
+        dvr = float(f[1] * self.velocity_scale_m_s)
+        dvt = float(f[2] * self.velocity_scale_m_s)
+        return {"radial_velocity_m_s": dvr, "tangential_velocity_m_s": dvt,
+                "speed_m_s": float(np.hypot(dvr, dvt)),
+                "radius_m": float(f[3] * self.radius_scale_m)}
+
+    def success_from(self, x, f, errors, feasible) -> tuple[bool, str]:
+        ok = errors["speed_m_s"] < self.speed_tol_m_s and abs(errors["radius_m"]) < \
+            self.radius_tol_m
+        crit = f"|dV| < {self.speed_tol_m_s:g} m/s, |dr| < {self.radius_tol_m:g} m"
+        return bool(ok), (f"terminal conditions met ({crit})" if ok else
+                          f"terminal conditions NOT met ({crit}): |dV| = "
+                          f"{errors['speed_m_s']:.3g} m/s, dr = {errors['radius_m']:.3g} m")
+
+    def fuel_tf(self, x: np.ndarray, f: np.ndarray) -> tuple[float, float]:
+        return float(self.fuel_kg_from_fitness(f[None, :])[0]), float(x[-1])
+
+    def _fingerprint_items(self) -> list:
+        return super()._fingerprint_items() + [
+            self.scenario, self.y0_nd.tolist(), self.n_steps, self.objective,
+            repr(self.parameterisation), self.velocity_scale_m_s, self.radius_scale_m,
+            self.penalty_units]
+
     def fuel_kg_from_fitness(self, F: np.ndarray) -> np.ndarray:
         """Propellant (kg) from rows of :meth:`batch_fitness`, shape (batch,)."""
         F = np.atleast_2d(F)
         if self.objective == "fuel":
             return F[:, 0].copy()
         return (self.y0_nd[4] + F[:, 0]) * self.scaling.mass_kg
-
-    def penalty_fitness(self, F: np.ndarray, sigma_velocity: float, sigma_radius: float,
-                        units: str = "normalised") -> np.ndarray:
-        """Penalised fitness of [000] eq. (11) (to be **maximised**).
-
-        ``units="normalised"`` (default, the paper's §2 units):
-        ``f = −σ1·sqrt(Δv² + Δv_t²)/v_ref − σ2·|Δr|/L + m(tf)/m0``;
-        ``units="si"``: the same expression in m/s, m and kg,
-        ``f = −σ1·sqrt(Δv² + Δv_t²)[m/s] − σ2·|Δr|[m] + m(tf)[kg]`` (an alternative reading of
-        eq. 11, under which the paper's T0 = 10000 matches the size of the early penalties).
-
-        Parameters
-        ----------
-        F : ndarray, shape (batch, 4)
-            Rows of :meth:`batch_fitness`.
-        sigma_velocity, sigma_radius : float
-            σ1 and σ2 of eq. (11).
-        units : {"normalised", "si"}
-
-        Returns
-        -------
-        ndarray, shape (batch,)
-        """
-        F = np.atleast_2d(F)
-        s = self.scaling
-        dv_m_s = np.hypot(F[:, 1], F[:, 2]) * self.velocity_scale_m_s
-        dr_m = np.abs(F[:, 3]) * self.radius_scale_m
-        m_f_kg = self.y0_nd[4] * s.mass_kg - self.fuel_kg_from_fitness(F)
-        if units == "normalised":
-            return (-sigma_velocity * dv_m_s / s.velocity_m_s - sigma_radius * dr_m / s.length_m
-                    + m_f_kg / s.mass_kg)
-        if units == "si":
-            return -sigma_velocity * dv_m_s - sigma_radius * dr_m + m_f_kg
-        raise ValueError(f"units = {units!r}; use 'normalised' or 'si'")
 
     # ---- decoding -------------------------------------------------------------------------
     def thrust_angle_rad(self, x: np.ndarray, t_s: np.ndarray) -> np.ndarray:
@@ -349,38 +373,3 @@ class PlanarLandingProblem(Problem):
             "fuel_kg": float((self.y0_nd[4] - prop.y_end[0, 4]) * s.mass_kg),
             "terminal_errors": err,
         }
-
-
-class PenalisedProblem(Problem):
-    """Unconstrained wrapper: objective = −(penalised fitness of [000] eq. 11), no constraints.
-
-    For algorithms without constraint handling (pygmo's ``sade``, ``cmaes``, ``pso``): the
-    same penalty as ASAGA uses, with *fixed* weights. The default weights are ASAGA's final
-    ones (T = Tmax in [000]: σ2 = 10, σ1 = 5σ2 = 50), i.e. the fitness ASAGA's result is judged
-    by at the end of its run.
-
-    Parameters
-    ----------
-    problem : PlanarLandingProblem
-    sigma_velocity, sigma_radius : float
-    """
-
-    def __init__(self, problem: PlanarLandingProblem, sigma_velocity: float = 50.0,
-                 sigma_radius: float = 10.0) -> None:
-        super().__init__()
-        self.problem = problem
-        self.sigma_velocity = float(sigma_velocity)
-        self.sigma_radius = float(sigma_radius)
-
-    def get_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.problem.get_bounds()
-
-    def get_name(self) -> str:
-        return f"Penalised[{self.problem.get_name()}]"
-
-    def _batch_fitness(self, X: np.ndarray) -> np.ndarray:
-        F = self.problem.batch_fitness(X)
-        return -self.problem.penalty_fitness(F, self.sigma_velocity, self.sigma_radius)[:, None]
-
-    def decode(self, x: np.ndarray):
-        return self.problem.decode(x)

@@ -29,11 +29,13 @@ from lunar_env import dynamics as dyn
 from lunar_env.integrators import MOON3D, PiecewisePolynomial, integrate
 from lunar_env.scenarios import PinpointScenario
 
+from ..common.casadi_tools import casadi as _casadi_module
+
 __all__ = ["PinpointOCP"]
 
 
 def _ca():
-    return dyn._casadi()
+    return _casadi_module()
 
 
 @dataclass(frozen=True, eq=False)

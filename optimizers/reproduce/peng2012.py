@@ -46,9 +46,9 @@ import numpy as np
 from lunar_env import get_scenario
 from lunar_env.integrators import MOON3D, integrate_reference
 
-from ..pontryagin_pinpoint import solve_pinpoint_min_time
+from ..indirect.pinpoint import solve_pinpoint_min_time
 from ..problems.pinpoint import PinpointOCP
-from ..serial_gpm_shooting import dense_collocation_check, get_solver, random_guess
+from ..transcription.serial import dense_collocation_check, get_solver, random_guess
 
 __all__ = ["main", "PUBLISHED", "replay_in_env"]
 

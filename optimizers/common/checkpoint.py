@@ -1,0 +1,82 @@
+"""Atomic, self-describing checkpoints for resumable solvers.
+
+A checkpoint is a pickle of ``{"format": 1, "identity": {...}, "state": ...}`` written to a
+temporary file in the same directory and moved into place with ``os.replace`` (a reader never
+sees a half-written file; a kill leaves the previous checkpoint intact). ``identity`` records
+what the state belongs to (algorithm, its settings, the problem's fingerprint, the seed);
+:func:`load_checkpoint` refuses a file whose identity differs, naming the differing keys.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import tempfile
+from pathlib import Path
+from typing import Any
+
+__all__ = ["save_checkpoint", "load_checkpoint", "atomic_write_bytes", "CheckpointMismatch"]
+
+_FORMAT = 1
+
+
+class CheckpointMismatch(ValueError):
+    """The checkpoint belongs to another run (problem, settings or seed)."""
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file in the same folder, fsync,
+    ``os.replace``)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return path
+
+
+def save_checkpoint(path: str | os.PathLike, identity: dict[str, Any], state: Any) -> Path:
+    """Atomically write ``state`` with its ``identity`` to ``path``."""
+    payload = {"format": _FORMAT, "identity": dict(identity), "state": state}
+    return atomic_write_bytes(path, pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL))
+
+
+def load_checkpoint(path: str | os.PathLike, identity: dict[str, Any]) -> Any:
+    """The state stored at ``path``, after checking it belongs to ``identity``.
+
+    Raises
+    ------
+    CheckpointMismatch
+        The file records another algorithm, settings, problem or seed (the message names the
+        keys and both values), or it is not a checkpoint of this format.
+    ValueError
+        The file is damaged (cannot be unpickled); the message names the file.
+    """
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            payload = pickle.load(fh)
+    except (pickle.UnpicklingError, EOFError, AttributeError, ImportError, IndexError) as exc:
+        raise ValueError(f"checkpoint {path} is damaged and cannot be read ({exc!r}); delete it "
+                         "to start afresh") from None
+    if not isinstance(payload, dict) or payload.get("format") != _FORMAT:
+        raise CheckpointMismatch(f"{path} is not a checkpoint of this version (format "
+                                 f"{_FORMAT}); delete it to start afresh")
+    stored = payload["identity"]
+    diff = sorted(k for k in set(stored) | set(identity) if stored.get(k) != identity.get(k))
+    if diff:
+        details = "; ".join(f"{k}: checkpoint {stored.get(k)!r} vs this run {identity.get(k)!r}"
+                            for k in diff)
+        raise CheckpointMismatch(f"checkpoint {path} belongs to another run ({details}); use "
+                                 "another checkpoint path or delete it")
+    return payload["state"]
