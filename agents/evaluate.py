@@ -582,7 +582,7 @@ def plot_comparison(report: dict[str, Any], path: str | Path) -> Path:
         ax_tr, ax_u = axes[row]
         sols = report.get("optimal_solutions")
         if planar and sols is not None and sols[cid].success:
-            tr = sols[cid].trajectory(n=301)
+            tr = sols[cid].sample(n=301)
             st = tr.states
             ax_tr.plot(st["theta_rad"] * r_surf / 1e3, (st["radius_m"] - r_surf) / 1e3,
                        "k--", lw=2, label="optimum")

@@ -127,5 +127,5 @@ def check_planar_states_si(rows, *, dry_mass_kg: float, name: str = "initial_sta
     if arr.ndim != 2 or arr.shape[1] != 5:
         raise ValueError(f"{name} has shape {arr.shape}; expected (N, 5) rows {_PLANAR_ROW}")
     for i, row in enumerate(arr):
-        check_planar_state_si(row, dry_mass_kg=dry_mass_kg, name=f"{name}[{i}]")
+        check_planar_state_si(row, dry_mass_kg=dry_mass_kg, name=f"{name} row {i}")
     return arr

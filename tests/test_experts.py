@@ -32,13 +32,13 @@ def test_expert_returns_optimal_and_finite_angles(scenario, nominal):
     assert expert.last_status == [STATUS_OPTIMAL]
     assert phi == pytest.approx(nominal.thrust_angle_at(0.0), abs=1e-6)
     # Along the optimal trajectory (mass clock), the expert reproduces the open-loop plan.
-    traj = nominal.trajectory(7)
+    traj = nominal.sample(7)
     rows = np.stack([traj.states[k] for k in ("radius_m", "radial_velocity_m_s", "theta_rad",
                                              "tangential_velocity_m_s", "mass_kg")], axis=1)
     for k in range(1, 4):
         assert expert(rows[k]) == pytest.approx(traj.controls["phi_rad"][k], abs=1e-5)
     # In the last seconds of the plan the expert holds the previous plan's angle.
-    late = nominal.trajectory(2001)
+    late = nominal.sample(2001)
     k = np.searchsorted(late.t_s, nominal.tf_s - 1.0)
     row = np.array([late.states[n][k] for n in ("radius_m", "radial_velocity_m_s", "theta_rad",
                                                "tangential_velocity_m_s", "mass_kg")])

@@ -7,13 +7,13 @@ from lunar_env import dynamics as dyn
 from lunar_env.scenarios import get_scenario
 from optimizers.indirect.planar import (
     PontryaginGuess,
-    _system,
     hamiltonian,
     optimal_thrust_angle,
     replay_reference,
     solve_many,
     solve_planar_min_fuel,
 )
+from optimizers.indirect.planar_system import system_for
 from optimizers.transcription.collocation import solve_planar_min_time_collocation
 from optimizers.transcription.polynomial_shooting import solve_planar_min_time_polynomial
 
@@ -42,7 +42,7 @@ def test_nominal_optimum_meets_the_boundary_conditions_on_replay(scenario, nomin
     xf = replay_reference(nominal, rtol=1e-12, atol=1e-14)
     assert abs(xf[dyn.R] * scenario.scaling().length_m - scenario.target.radius_m) < 1e-4
     # Fuel is the mass flow times tf, and the mass history agrees.
-    traj = nominal.trajectory(51)
+    traj = nominal.sample(51)
     assert traj.states["mass_kg"][0] - traj.states["mass_kg"][-1] == pytest.approx(
         nominal.fuel_kg, abs=1e-9)
     assert nominal.fuel_kg == pytest.approx(scenario.vehicle.mass_flow_kg_s * nominal.tf_s)
@@ -51,7 +51,7 @@ def test_nominal_optimum_meets_the_boundary_conditions_on_replay(scenario, nomin
 
 
 def test_hamiltonian_vanishes_along_the_arc_and_transversality(scenario, nominal):
-    traj = nominal.trajectory(301)
+    traj = nominal.sample(301)
     assert np.max(np.abs(traj.states["hamiltonian"])) < 1e-9
     z = nominal.state_costate_at(np.array([0.0, nominal.tf_s]))
     lam0, lamf = z[0, 5:], z[1, 5:]
@@ -76,7 +76,7 @@ def test_optimal_angle_minimises_the_hamiltonian_pointwise(scenario, nominal):
 
 def test_costate_equations_are_minus_dh_dx(scenario, nominal):
     """CasADi's AD costate rhs against central differences of the NumPy Hamiltonian."""
-    sysm = _system(scenario.params())
+    sysm = system_for(scenario.params())
     z = nominal.state_costate_at(np.array([0.3 * nominal.tf_s]))[0]
     x, lam = z[:5], z[5:]
     phi = optimal_thrust_angle(x, lam)
@@ -152,7 +152,7 @@ def test_heliocentric_low_thrust_transfer_solves():
     assert 3.5 <= tf_nd <= 4.0  # the paper's normalised tf bounds contain the optimum
     rel = sol.terminal_errors["radius_m"] / mars.target.radius_m
     assert rel < 1e-8
-    assert np.max(np.abs(sol.trajectory(101).states["hamiltonian"])) < 1e-6
+    assert np.max(np.abs(sol.sample(101).states["hamiltonian"])) < 1e-6
 
 
 def test_bad_input_raises(scenario):

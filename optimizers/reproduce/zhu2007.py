@@ -121,7 +121,7 @@ def _plots(out_dir: str, problem, runs, best_i, pontryagin_sol, units: str = "no
 
     os.makedirs(out_dir, exist_ok=True)
     traj = problem.decode(runs[best_i].x)["trajectory"]
-    pt = pontryagin_sol.trajectory(301) if pontryagin_sol is not None else None
+    pt = pontryagin_sol.sample(301) if pontryagin_sol is not None else None
     figs = [
         ("fig3_thrust_angle.png", "phi_rad", np.rad2deg, "thrust angle φ (deg)"),
         ("fig4_radial_velocity.png", "radial_velocity_m_s", None, "radial velocity (m/s)"),

@@ -1,7 +1,8 @@
 """Direct Hermite–Simpson collocation of the planar minimum-time (= minimum-fuel) landing.
 
-A *direct* transcription of the same optimal-control problem the Pontryagin solver
-(:mod:`optimizers.pontryagin`) solves indirectly, with CasADi and IPOPT. It has two jobs:
+A *direct* transcription of the same optimal-control problem
+(:class:`optimizers.problems.planar_ocp.PlanarOCP`) the Pontryagin solver
+(:mod:`optimizers.indirect.planar`) solves indirectly, with CasADi and IPOPT. It has two jobs:
 
 1. **Robust start** for the indirect shooting: a coarse grid (≈ 20 intervals) converges from a
    crude straight-line guess, and the multipliers of its defect constraints estimate the
@@ -9,10 +10,9 @@ A *direct* transcription of the same optimal-control problem the Pontryagin solv
 2. **Independent check** of the indirect optimum: a dense grid (≥ 100 intervals) gives the
    optimum by a different method (no costates, no shooting), used in ``tests/test_pontryagin.py``.
 
-Problem (normalised units of :mod:`lunar_env.dynamics`, μ = 1): minimise tf subject to the planar
-equations of motion :func:`lunar_env.dynamics.planar_rhs_casadi` with the throttle fixed at 1
-(paper 000's engine burns at constant thrust through the powered descent, so minimum fuel is
-minimum time), x(0) given, r(tf) = r_f, v(tf) = v_f, r(tf)·ω(tf) = v_t,f, θ(tf) and m(tf) free.
+Problem: :class:`~optimizers.problems.planar_ocp.PlanarOCP` (normalised units, μ = 1): minimise
+tf subject to its right-hand side (the shared planar model, throttle fixed at 1: minimum fuel is
+minimum time), x(0) given and its terminal residual (r, v, r·ω at tf; θ(tf), m(tf) free).
 
 Transcription: separated Hermite–Simpson on N equal intervals of the scaled time τ = t/tf ∈
 [0, 1]; states and the thrust angle at the nodes and interval midpoints; tf is a decision
@@ -33,31 +33,32 @@ minimises H with these costates matches the collocated angle).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from lunar_env import dynamics as dyn
-from lunar_env.scenarios import PlanarScenario
 from lunar_env.validation import require_finite_positive
 
-__all__ = ["CollocationSolution", "solve_planar_min_time_collocation", "initial_state_nd"]
+from ..common.casadi_tools import casadi, nlp_counts
+from ..common.result import OptimResult
+from ..problems.planar_ocp import PlanarOCP, as_planar_ocp
+
+__all__ = ["CollocationSolution", "solve_planar_min_time_collocation"]
 
 
 @dataclass
-class CollocationSolution:
-    """Result of :func:`solve_planar_min_time_collocation` (normalised unless stated).
+class CollocationSolution(OptimResult):
+    """:class:`~optimizers.common.result.OptimResult` of
+    :func:`solve_planar_min_time_collocation`, with the transcription's arrays (normalised).
+
+    ``x`` is the NLP's decision vector; ``history`` the fuel (kg) at each IPOPT iteration;
+    ``terminal_errors`` those of the collocated final state; ``success`` IPOPT's convergence
+    and the problem's verdict.
 
     Attributes
     ----------
-    success : bool
-        IPOPT reported convergence.
-    message : str
-        IPOPT's return status.
     tf_nd : float
-    tf_s : float
-    fuel_kg : float
-        Propellant used, mass flow × tf (constant thrust).
     t_nd : ndarray, shape (N + 1,)
         Node times.
     states_nd : ndarray, shape (N + 1, 5)
@@ -69,76 +70,18 @@ class CollocationSolution:
         module docstring), normalised with λ0 = 1.
     t_mid_nd : ndarray, shape (N,)
         Interval midpoints (where ``costates_nd`` apply).
-    wall_s : float
     """
 
-    success: bool
-    message: str
-    tf_nd: float
-    tf_s: float
-    fuel_kg: float
-    t_nd: np.ndarray
-    states_nd: np.ndarray
-    phi_rad: np.ndarray
-    costates_nd: np.ndarray
-    t_mid_nd: np.ndarray
-    wall_s: float
-
-
-def initial_state_nd(scenario: PlanarScenario, initial_state_si=None) -> np.ndarray:
-    """Normalised initial state (5,) from an SI row (r m, vr m/s, θ rad, v_t m/s, m kg).
-
-    ``None`` gives the scenario's nominal initial state.
-
-    Raises
-    ------
-    TypeError
-        If ``scenario`` is not a planar scenario.
-    ValueError
-        If the row has the wrong shape, is not finite, or has a non-positive radius or a mass
-        at or below the dry mass.
-    """
-    if not isinstance(scenario, PlanarScenario):
-        raise TypeError(f"scenario must be a PlanarScenario (e.g. get_scenario('zhu2007')), got "
-                        f"{type(scenario).__name__}")
-    if initial_state_si is None:
-        return scenario.state_nd()
-    row = np.asarray(initial_state_si, dtype=np.float64)
-    if row.shape != (5,):
-        raise ValueError(f"initial_state_si has shape {row.shape}; expected (5,) = "
-                         "(r m, vr m/s, θ rad, v_t m/s, m kg)")
-    if not np.all(np.isfinite(row)):
-        raise ValueError(f"initial_state_si = {row!r} is not finite; all 5 components must be")
-    if row[0] <= 0.0:
-        raise ValueError(f"initial_state_si radius = {row[0]!r} m must be > 0")
-    if row[4] <= scenario.vehicle.dry_mass_kg:
-        raise ValueError(f"initial_state_si mass = {row[4]!r} kg must be > the dry mass "
-                         f"{scenario.vehicle.dry_mass_kg!r} kg")
-    return scenario.si_to_nd(row)
-
-
-def target_nd(scenario: PlanarScenario) -> np.ndarray:
-    """Normalised terminal targets (r_f, v_f, v_t,f), shape (3,)."""
-    s = scenario.scaling()
-    t = scenario.target
-    return np.array([s.length_nd(t.radius_m), s.velocity_nd(t.radial_velocity_m_s),
-                     s.velocity_nd(t.tangential_velocity_m_s)], dtype=np.float64)
-
-
-def rocket_equation_tf_nd(scenario: PlanarScenario, x0_nd: np.ndarray) -> float:
-    """First guess of tf from the rocket equation ([000] eq. 23) with the speed to remove.
-
-    tf ≈ (1 − exp(−Δv/c))·m0·c/F, Δv = |(v0, r0ω0) − (v_f, v_t,f)|, normalised units.
-    """
-    p = scenario.params()
-    tgt = target_nd(scenario)
-    dv = np.hypot(x0_nd[dyn.VR] - tgt[1], x0_nd[dyn.R] * x0_nd[dyn.OMEGA] - tgt[2])
-    c = p.exhaust_velocity_nd
-    return float((1.0 - np.exp(-dv / c)) * x0_nd[dyn.M] * c / p.thrust_nd)
+    tf_nd: float = float("nan")
+    t_nd: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    states_nd: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))
+    phi_rad: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    costates_nd: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))
+    t_mid_nd: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def solve_planar_min_time_collocation(
-    scenario: PlanarScenario,
+    problem: PlanarOCP,
     initial_state_si=None,
     *,
     n_intervals: int = 20,
@@ -151,10 +94,10 @@ def solve_planar_min_time_collocation(
 
     Parameters
     ----------
-    scenario : PlanarScenario
-        E.g. ``get_scenario("zhu2007")``. The throttle is fixed at 1 (constant thrust).
+    problem : PlanarOCP (or a PlanarScenario / scenario name, made into one)
+        E.g. ``PlanarOCP("zhu2007")``. The throttle is fixed at 1 (constant thrust).
     initial_state_si : array_like, shape (5,), optional
-        (r m, vr m/s, θ rad, v_t m/s, m kg); default the scenario's nominal initial state.
+        (r m, vr m/s, θ rad, v_t m/s, m kg); default the problem's initial state.
     n_intervals : int
         Number N of equal collocation intervals (≥ 2).
     tol : float
@@ -176,24 +119,25 @@ def solve_planar_min_time_collocation(
     Raises
     ------
     ValueError, TypeError
-        On invalid input (see :func:`initial_state_nd`) or ``n_intervals < 2``.
+        On invalid input (see :class:`~optimizers.problems.planar_ocp.PlanarOCP`) or
+        ``n_intervals < 2``.
     """
-    import casadi as ca
-
+    ca = casadi()
     t_start = time.perf_counter()
-    x0 = initial_state_nd(scenario, initial_state_si)
+    ocp = as_planar_ocp(problem, initial_state_si)
+    x0 = ocp.x0_nd
     n = int(n_intervals)
     if n < 2:
         raise ValueError(f"n_intervals = {n_intervals!r} must be >= 2")
     if not (np.isfinite(tol) and tol > 0):
         raise ValueError(f"tol = {tol!r} must be finite and > 0")
-    params = scenario.params()
-    s = scenario.scaling()
-    tgt = target_nd(scenario)
+    params = ocp.params
+    s = ocp.scaling
+    tgt = ocp.target_nd
 
     xs = ca.SX.sym("x", 5)
     us = ca.SX.sym("phi")
-    f_fun = ca.Function("f", [xs, us], [dyn.planar_rhs_casadi(xs, ca.vertcat(us, 1.0), params)])
+    f_fun = ca.Function("f", [xs, us], [ocp.rhs(xs, ca.vertcat(us))])
 
     opti_x = ca.MX.sym("X", 5, n + 1)
     opti_xm = ca.MX.sym("Xm", 5, n)
@@ -210,14 +154,13 @@ def solve_planar_min_time_collocation(
     g_mid = opti_xm - (0.5 * (xa + xb) + h / 8.0 * (fa - fb))
     g_simpson = xb - xa - h / 6.0 * (fa + 4.0 * fm + fb)
     xf = opti_x[:, -1]
-    g_term = ca.vertcat(xf[dyn.R] - tgt[0], xf[dyn.VR] - tgt[1],
-                        xf[dyn.R] * xf[dyn.OMEGA] - tgt[2])
+    g_term = ocp.terminal_residual(xf)
     w = ca.vertcat(ca.vec(opti_x), ca.vec(opti_xm), ca.vec(opti_u), ca.vec(opti_um), tf)
     g = ca.vertcat(ca.vec(g_simpson), ca.vec(g_mid), g_term)
 
     # Straight-line first guess; tf from the rocket equation; φ rising from 0 to 90°, the shape
     # of every braking-to-hover solution ([000] fig. 2).
-    tf0 = rocket_equation_tf_nd(scenario, x0)
+    tf0 = ocp.rocket_equation_tf_nd()
     tau = np.linspace(0.0, 1.0, n + 1)
     taum = 0.5 * (tau[:-1] + tau[1:])
     xf_guess = np.array([tgt[0], tgt[1], 0.0, tgt[2] / tgt[0],
@@ -259,17 +202,21 @@ def solve_planar_min_time_collocation(
     phi = np.mod(wv[off:off + n + 1] + np.pi, 2.0 * np.pi) - np.pi  # wrap to [−π, π)
     tf_nd = float(wv[-1])
     costates = -lam_g[:5 * n].reshape(n, 5)
-    flow = scenario.vehicle.mass_flow_kg_s
+    n_f, n_it = nlp_counts(solver)
+    fuel = ocp.fuel_kg(tf_nd)
+    errors = ocp.terminal_errors(states[-1])
+    r_min_m = float(np.min(states[:, dyn.R])) * s.length_m
+    ok, why = ocp.success_from(errors, {
+        "final_mass_kg": float(states[-1, dyn.M]) * s.mass_kg,
+        "min_altitude_m": r_min_m - ocp.scenario.surface_radius_m})
+    converged = bool(stats["success"])
+    iters = stats.get("iterations", {}).get("obj", [])
+    history = np.asarray([ocp.fuel_kg(v) for v in iters] or [fuel], dtype=np.float64)
     return CollocationSolution(
-        success=bool(stats["success"]),
-        message=str(stats["return_status"]),
-        tf_nd=tf_nd,
-        tf_s=tf_nd * s.time_s,
-        fuel_kg=flow * tf_nd * s.time_s,
-        t_nd=tau * tf_nd,
-        states_nd=states,
-        phi_rad=phi,
-        costates_nd=costates,
-        t_mid_nd=taum * tf_nd,
-        wall_s=time.perf_counter() - t_start,
-    )
+        x=wv, fuel_kg=fuel, tf_s=tf_nd * s.time_s, terminal_errors=errors, history=history,
+        n_fevals=n_f, n_iter=n_it, wall_s=time.perf_counter() - t_start,
+        success=converged and ok,
+        message=f"IPOPT: {stats['return_status']}; {why}", fun=fuel,
+        algorithm=f"Hermite–Simpson collocation ({n} intervals)", problem=repr(ocp),
+        tf_nd=tf_nd, t_nd=tau * tf_nd, states_nd=states, phi_rad=phi, costates_nd=costates,
+        t_mid_nd=taum * tf_nd)

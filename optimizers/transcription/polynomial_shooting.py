@@ -1,7 +1,8 @@
 """Direct single shooting of the planar minimum-time landing with a polynomial thrust angle.
 
 A second *direct* method for the certification of the Pontryagin optimum
-(:mod:`optimizers.pontryagin`), on a different integration path: the compiled batched RK4 of
+(:mod:`optimizers.indirect.planar`) of a :class:`~optimizers.problems.planar_ocp.PlanarOCP`, on
+a different integration path: the compiled batched RK4 of
 :func:`lunar_env.integrators.integrate` (the one the GAs evaluate their populations with).
 The thrust angle is a Chebyshev series of degree ``degree`` on [0, tf],
 φ(t) = Σ a_k T_k(2t/tf − 1); the unknowns (a_0..a_degree, tf) are found by SLSQP minimising tf
@@ -16,46 +17,33 @@ above the indirect optimum of ``zhu2007``.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from lunar_env.integrators import PLANAR, PiecewisePolynomial, integrate
-from lunar_env.scenarios import PlanarScenario
 
-from .collocation import initial_state_nd, rocket_equation_tf_nd, target_nd
+from ..common.result import OptimResult
+from ..problems.planar_ocp import PlanarOCP, as_planar_ocp
 
 __all__ = ["PolynomialShootingSolution", "solve_planar_min_time_polynomial"]
 
 
 @dataclass
-class PolynomialShootingSolution:
-    """Result of :func:`solve_planar_min_time_polynomial`.
+class PolynomialShootingSolution(OptimResult):
+    """:class:`~optimizers.common.result.OptimResult` of
+    :func:`solve_planar_min_time_polynomial` (``x`` = (a_0..a_degree, tf_nd)).
 
     Attributes
     ----------
-    success : bool
-    message : str
-    fuel_kg, tf_s : float
     chebyshev_coefs : ndarray, shape (degree + 1,)
         a_k of φ(t) = Σ a_k T_k(2t/tf − 1), radians.
-    terminal_errors : dict of str -> float
-        Absolute SI errors ``radius_m``, ``radial_velocity_m_s``, ``tangential_velocity_m_s``.
-    n_iter : int
-    wall_s : float
     """
 
-    success: bool
-    message: str
-    fuel_kg: float
-    tf_s: float
-    chebyshev_coefs: np.ndarray
-    terminal_errors: dict[str, float]
-    n_iter: int
-    wall_s: float
+    chebyshev_coefs: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
-    def thrust_angle_at(self, t_s, scenario: PlanarScenario) -> np.ndarray:
-        """φ (rad) at times ``t_s`` (s)."""
+    def thrust_angle_at(self, t_s, scenario=None) -> np.ndarray:
+        """φ (rad) at times ``t_s`` (s) (``scenario``: accepted for the 0.1 API, unused)."""
         x = 2.0 * np.asarray(t_s, dtype=np.float64) / self.tf_s - 1.0
         return np.polynomial.chebyshev.chebval(x, self.chebyshev_coefs)
 
@@ -67,7 +55,7 @@ def _power_coefs(cheb: np.ndarray, tf_nd: float) -> np.ndarray:
 
 
 def solve_planar_min_time_polynomial(
-    scenario: PlanarScenario,
+    problem: PlanarOCP,
     initial_state_si=None,
     *,
     degree: int = 3,
@@ -80,9 +68,9 @@ def solve_planar_min_time_polynomial(
 
     Parameters
     ----------
-    scenario : PlanarScenario
+    problem : PlanarOCP (or a PlanarScenario / scenario name)
     initial_state_si : array_like, shape (5,), optional
-        SI row (r m, vr m/s, θ rad, v_t m/s, m kg); default the nominal initial state.
+        SI row (r m, vr m/s, θ rad, v_t m/s, m kg); default the problem's initial state.
     degree : int
         Polynomial degree of φ(t) (≥ 1).
     n_steps : int
@@ -101,21 +89,22 @@ def solve_planar_min_time_polynomial(
     Raises
     ------
     ValueError, TypeError
-        Bad state (see :func:`optimizers.planar_collocation.initial_state_nd`), degree < 1,
+        Bad state (see :class:`~optimizers.problems.planar_ocp.PlanarOCP`), degree < 1,
         n_steps < 1.
     """
     from scipy.optimize import minimize
 
     t_start = time.perf_counter()
-    x0 = initial_state_nd(scenario, initial_state_si)
+    ocp = as_planar_ocp(problem, initial_state_si)
+    x0 = ocp.x0_nd
     degree = int(degree)
     if degree < 1:
         raise ValueError(f"degree = {degree} must be >= 1")
     if int(n_steps) < 1:
         raise ValueError(f"n_steps = {n_steps!r} must be >= 1")
-    params = scenario.params()
-    tgt = target_nd(scenario)
-    s = scenario.scaling()
+    params = ocp.params
+    tgt = ocp.target_nd
+    s = ocp.scaling
     n_c = degree + 1
 
     def residuals(zs: np.ndarray) -> np.ndarray:
@@ -146,7 +135,7 @@ def solve_planar_min_time_polynomial(
     z0 = np.zeros(n_c + 1)
     z0[0] = np.pi / 4  # φ rising from 0 to π/2 over the burn ([000] fig. 2)
     z0[1] = np.pi / 4
-    z0[-1] = rocket_equation_tf_nd(scenario, x0)
+    z0[-1] = ocp.rocket_equation_tf_nd()
     e_tf = np.zeros(n_c + 1)
     e_tf[-1] = 1.0
     bounds = [(None, None)] * n_c + [(0.2 * z0[-1], 5.0 * z0[-1])]
@@ -156,11 +145,14 @@ def solve_planar_min_time_polynomial(
                    options={"ftol": float(ftol), "maxiter": int(max_iter)})
     g = residuals(res.x)[0]
     tf_s = float(res.x[-1] * s.time_s)
-    errors = {"radius_m": float(abs(g[0]) * s.length_m),
-              "radial_velocity_m_s": float(abs(g[1]) * s.velocity_m_s),
-              "tangential_velocity_m_s": float(abs(g[2]) * s.velocity_m_s)}
+    errors = ocp.terminal_errors(np.array([tgt[0] + g[0], tgt[1] + g[1], 0.0,
+                                           (tgt[2] + g[2]) / (tgt[0] + g[0]), 1.0]))
+    ok, why = ocp.success_from(errors)
+    fuel = ocp.fuel_kg(res.x[-1])
     return PolynomialShootingSolution(
-        success=bool(res.success), message=str(res.message),
-        fuel_kg=scenario.vehicle.mass_flow_kg_s * tf_s, tf_s=tf_s,
-        chebyshev_coefs=res.x[:n_c].copy(), terminal_errors=errors, n_iter=int(res.nit),
-        wall_s=time.perf_counter() - t_start)
+        x=res.x.copy(), fuel_kg=fuel, tf_s=tf_s, terminal_errors=errors,
+        history=np.array([fuel]), n_fevals=int(res.nfev), n_iter=int(res.nit),
+        wall_s=time.perf_counter() - t_start, success=bool(res.success) and ok,
+        message=f"SLSQP: {res.message}; {why}", fun=fuel,
+        algorithm=f"polynomial single shooting (degree {degree}, SLSQP)", problem=repr(ocp),
+        chebyshev_coefs=res.x[:n_c].copy())
