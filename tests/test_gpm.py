@@ -11,6 +11,8 @@ import pytest
 from lunar_env import get_scenario
 from lunar_env.dynamics import _casadi, moon3d_rhs
 from lunar_env.integrators import MOON3D, integrate_reference
+from lunar_env.scaling import Scaling
+from optimizers.common.ocp import OCP
 from optimizers.direct_shooting import DirectShooting, gauss_segment_fractions
 from optimizers.gpm import (
     GaussPseudospectral,
@@ -77,7 +79,24 @@ def test_bad_node_count_raises():
 
 
 @dataclass(eq=False)
-class _ToyOCP:
+class _Unitless(OCP):
+    """Toy problems in plain units: no fuel, errors are the terminal residuals."""
+
+    scaling = Scaling(1.0, 1.0, 1.0)
+    tolerances = {"residual": 1e-8}
+
+    @property
+    def initial_state(self):
+        return np.zeros(self.n_state)
+
+    def fuel_kg(self, tf_nd):
+        return float("nan")
+
+    def terminal_errors(self, xf):
+        return {"residual": float(np.max(np.abs(np.asarray(self.terminal_residual(xf)))))}
+
+
+class _ToyOCP(_Unitless):
     """x' = v, v' = u, J' = u²/2 on a fixed horizon (tf bounds equal), x: 0 -> 1, v: 0 -> 0.
 
     Known optimum: u(t) = 6 − 12t, J = 6 (tf = 1): the cubic state is exact for N >= 3.
@@ -86,7 +105,6 @@ class _ToyOCP:
     tf: float = 1.0
     n_state = 3
     n_control = 1
-    initial_state = np.zeros(3)
     control_lower = np.array([-50.0])
     control_upper = np.array([50.0])
 
@@ -113,13 +131,12 @@ class _ToyOCP:
 
 
 @dataclass(eq=False)
-class _MinTimeOCP:
+class _MinTimeOCP(_Unitless):
     """Minimum time to reach velocity (1, 1) from rest under a unit acceleration of direction
     θ: θ = 45°, tf = √2 (x, y free)."""
 
     n_state = 4
     n_control = 1
-    initial_state = np.zeros(4)
     control_lower = np.array([-math.pi])
     control_upper = np.array([math.pi])
     tf_bounds_nd = (0.1, 10.0)
@@ -278,3 +295,21 @@ def test_shooting_rejects_bad_guess(ocp):
         ds.solve(ocp, 0.5, np.zeros((3, 2)))
     with pytest.raises(ValueError, match="form"):
         DirectShooting(form="double")
+
+
+@pytest.mark.parametrize("altitude_m, u_m_s", [(1000.0, 0.0), (300.0, -60.0)])
+def test_no_success_through_the_moon(altitude_m, u_m_s):
+    # issue 18 item 4: from 1 km (or 300 m at -60 m/s) solve_serial used to report success for
+    # trajectories reaching -4716 m (-7673 m). The surface is now a path constraint at the nodes
+    # and the verdict checks the replayed trajectory.
+    import dataclasses
+
+    sc = get_scenario("peng2012")
+    st = dataclasses.replace(sc.initial, altitude_m=altitude_m, u_m_s=u_m_s)
+    res = solve_serial(sc, initial_state=sc.state_nd(st))
+    min_alt = float(np.min(res.trajectory.states["altitude_m"]))
+    ocp = PinpointOCP(sc)
+    errors_ok = all(res.terminal_errors[k] <= tol for k, tol in ocp.tolerances.items())
+    assert res.success == (errors_ok and min_alt >= 0.0 and "Succeeded" in res.message), \
+        res.message
+    assert not (res.success and min_alt < 0.0)

@@ -193,3 +193,14 @@ def test_thousand_dispersed_states(scenario):
     assert ok.all(), [s.message for s in sols if not s.success][:5]
     fuel = np.array([s.fuel_kg for s in sols])
     assert np.all((fuel > 240.0) & (fuel < 320.0))
+
+
+def test_degenerate_states_fail_cleanly(scenario):
+    # issue 18 item 7: a state already on the ground at rest raised ZeroDivisionError, and
+    # failures reported terminal errors of 0.0
+    s = solve_planar_min_fuel(scenario, [1738e3, 0.0, 0.0, 0.0, 600.0])
+    assert not s.success and "already meets the terminal conditions" in s.message
+    assert all(np.isnan(v) for v in s.terminal_errors.values())
+    hopeless = solve_planar_min_fuel(scenario, [1738e3 + 50.0, -100.0, 0.0, 1600.0, 400.0])
+    assert not hopeless.success
+    assert not any(v == 0.0 for v in hopeless.terminal_errors.values())

@@ -76,20 +76,16 @@ class OCP(ABC):
         """(lower, upper) on every node state; default unbounded."""
         return np.full(self.n_state, -np.inf), np.full(self.n_state, np.inf)
 
-    @property
-    @abstractmethod
-    def tf_bounds_nd(self) -> tuple[float, float]:
-        """Bounds of the free final time (normalised)."""
+    #: Bounds (low, high) of the free final time, normalised.
+    tf_bounds_nd: tuple[float, float]
 
     def objective(self, final_state, tf):
         """Mayer objective (default: tf, minimum time)."""
         return tf
 
     # ---- numeric ----------------------------------------------------------------------------
-    @property
-    @abstractmethod
-    def scaling(self) -> Scaling:
-        """SI <-> normalised conversion of this problem."""
+    #: SI <-> normalised conversion of this problem (:class:`lunar_env.scaling.Scaling`).
+    scaling: Scaling
 
     @abstractmethod
     def fuel_kg(self, tf_nd: float) -> float:
@@ -111,3 +107,26 @@ class OCP(ABC):
 
     #: SI tolerance per terminal-error key; a solution succeeds when every error is below it.
     tolerances: dict[str, float] = {}
+
+    #: The integrator model (:data:`lunar_env.integrators.PLANAR` or ``MOON3D``) and its
+    #: parameters, for replays by the compiled RK4 and the DOP853 reference.
+    model: object
+    params: object
+
+    def path_quantities(self, states_nd: np.ndarray) -> dict[str, float]:
+        """Path quantities of a trajectory (n, n_state) that :meth:`success_from` judges
+        (e.g. ``min_altitude_m``, ``final_mass_kg``); default none."""
+        return {}
+
+    def certified_optimum(self):
+        """This problem's optimum by its certifier (an :class:`~optimizers.common.result.
+        OptimResult` from an indirect or dense-collocation solve), computed once and cached."""
+        cached = getattr(self, "_certified", None)
+        if cached is None:
+            cached = self._solve_certified()
+            self._certified = cached
+        return cached
+
+    def _solve_certified(self):
+        raise NotImplementedError(f"{type(self).__name__} names no certifier; pass the "
+                                  "reference optimum to certify(..., reference=...)")

@@ -268,6 +268,12 @@ class Problem(ABC):
         return Assessment(float(f[0]), bool(feasible), bool(success), errors, violation,
                           float(fuel), float(tf), why, f)
 
+    def control_law(self, x: np.ndarray):
+        """The open-loop control law that ``x`` encodes (a picklable ``u(t_s)`` callable, e.g.
+        :class:`~optimizers.common.result.ControlLaw`), or None when ``x`` is not a control
+        (hook used by solvers to fill ``OptimResult.control``)."""
+        return None
+
     def fingerprint(self) -> str:
         """A short hash identifying this problem (name, bounds, constraint counts); checkpoints
         record it and refuse to resume on another problem. Problems with hidden data (an initial

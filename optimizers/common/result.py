@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["OptimResult", "Trajectory"]
+__all__ = ["OptimResult", "Trajectory", "ControlLaw"]
 
 
 @dataclass
@@ -39,6 +39,23 @@ class Trajectory:
             return self.t_s, self.controls[name]
         known = sorted(self.states) + sorted(self.controls)
         raise KeyError(f"{name!r} is not recorded; have {known}")
+
+
+@dataclass(frozen=True)
+class ControlLaw:
+    """An open-loop control law on SI time: a :class:`~lunar_env.integrators.PiecewisePolynomial`
+    in normalised time (batch 1) and the time unit. Picklable (process pools return results).
+
+    Calling it with ``t_s`` (float) returns the model's control vector (n_control,), throttle
+    included (e.g. (φ, throttle) for the planar model).
+    """
+
+    law: object
+    time_s: float
+
+    def __call__(self, t_s: float) -> np.ndarray:
+        t = np.array([[float(t_s) / self.time_s]])
+        return np.asarray(self.law(t))[0, 0]
 
 
 @dataclass
@@ -79,6 +96,10 @@ class OptimResult:
         Largest violation beyond the tolerance (0 when feasible).
     algorithm, problem : str
         Names of the solver and of the problem.
+    control : callable or None
+        The control law ``u(t_s) -> ndarray (n_control,)`` of the answer on SI time since the
+        start, throttle included (picklable, e.g. :class:`ControlLaw`); what
+        :func:`optimizers.common.certify.certify` replays. Read it with :meth:`control_at`.
     """
 
     x: np.ndarray
@@ -98,12 +119,26 @@ class OptimResult:
     constraint_violation: float = math.nan
     algorithm: str = ""
     problem: str = ""
+    control: object = field(default=None, repr=False)
+
+    def control_at(self, t_s: float) -> np.ndarray:
+        """The answer's control vector (n_control,) at ``t_s`` seconds after the start.
+
+        Raises
+        ------
+        ValueError
+            The solver recorded no control law for this result.
+        """
+        if self.control is None:
+            raise ValueError(f"this {type(self).__name__} ({self.algorithm or 'unknown solver'}) "
+                             "carries no control law")
+        return np.asarray(self.control(t_s), dtype=np.float64)
 
     @classmethod
     def from_assessment(cls, assessment, x: np.ndarray, *, history, n_fevals: int, n_iter: int,
                         wall_s: float, message: str = "", algorithm: str = "",
                         problem: str = "", trajectory: Trajectory | None = None,
-                        extra: dict | None = None) -> OptimResult:
+                        extra: dict | None = None, control=None) -> OptimResult:
         """Build a result whose verdict is the problem's :class:`~optimizers.common.problem.
         Assessment` (success, terminal errors, fuel and tf come from it)."""
         verdict = assessment.message
@@ -115,4 +150,4 @@ class OptimResult:
                    trajectory=trajectory, extra=dict(extra or {}), n_iter=int(n_iter),
                    fun=float(assessment.objective), feasible=bool(assessment.feasible),
                    constraint_violation=float(assessment.constraint_violation),
-                   algorithm=algorithm, problem=problem)
+                   algorithm=algorithm, problem=problem, control=control)

@@ -205,7 +205,8 @@ class EvolutionaryAlgorithm(ABC):
             verdict, x_best, history=state["history"].get("objective", []),
             n_fevals=state["n_fevals"], n_iter=g_final, wall_s=state["wall_s"],
             message=f"{why} after {g_final} generations", algorithm=self.name,
-            problem=problem.get_name(), trajectory=trajectory, extra=extra)
+            problem=problem.get_name(), trajectory=trajectory, extra=extra,
+            control=problem.control_law(x_best))
 
     # ---- pygmo user-defined algorithm -----------------------------------------------------
     def get_name(self) -> str:

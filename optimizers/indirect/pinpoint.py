@@ -33,6 +33,8 @@ from scipy.optimize import least_squares
 from lunar_env import dynamics as dyn
 
 from ..common.casadi_tools import casadi as _casadi
+from ..common.casadi_tools import rk4_step
+from ..common.result import OptimResult
 from ..problems.pinpoint import PinpointOCP
 
 __all__ = ["solve_pinpoint_min_time"]
@@ -72,18 +74,11 @@ def _functions(ocp: PinpointOCP, n_steps: int):
                                           ca.substitute(dlam, u, ustar)])
     ham = ca.Function("ham", [x, lam], [ca.substitute(H, u, ustar)])
     uf = ca.Function("ustar", [x, lam], [ustar])
-    y = ca.SX.sym("y", 14)
-    h = ca.SX.sym("h")
-
     def F(yy):
         a, b = rhs(yy[:7], yy[7:])
         return ca.vertcat(a, b)
 
-    k1 = F(y)
-    k2 = F(y + h / 2 * k1)
-    k3 = F(y + h / 2 * k2)
-    k4 = F(y + h * k3)
-    step = ca.Function("step", [y, h], [y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
+    step = rk4_step(F, 14, name="step")
     acc = step.mapaccum("acc", n_steps)
     z = ca.MX.sym("z", 7)  # λ_r(tf), λ_v(tf), tf
     tf = z[6]
@@ -121,14 +116,18 @@ def _primer_guess(ocp: PinpointOCP, t_nd: np.ndarray, e_thrust: np.ndarray, tf_n
 
 
 def solve_pinpoint_min_time(ocp: PinpointOCP, direct_result, *, n_steps: int = 2000,
-                            max_nfev: int = 200) -> dict:
+                            max_nfev: int = 200) -> OptimResult:
     """Indirect solution started from a direct one (e.g. the serial strategy's result).
 
     Returns
     -------
-    dict
-        ``tf_s``, ``fuel_kg``, ``success``, ``residual_norm``, ``nfev``, ``wall_s``,
-        ``max_abs_u_m_s``, ``max_abs_w_m_s``, ``min_alpha_deg``, ...
+    OptimResult
+        ``x`` = (λ_r(tf), λ_v(tf), tf_nd); ``fuel_kg``, ``tf_s``; ``terminal_errors`` the
+        mismatch at the *initial* state of the backward integration (``position_m``,
+        ``velocity_m_s``) and the Hamiltonian residual; ``success`` converged (Levenberg–
+        Marquardt) and the mismatch within 1 m, 0.01 m/s, |H + 1| < 1e-6; ``n_fevals`` residual
+        evaluations; ``extra``: ``max_abs_u_m_s``, ``max_abs_w_m_s``, ``min_alpha_deg``,
+        ``min_beta_deg``, ``costate_tf``, ``n_steps`` (path constraints checked afterwards).
     """
     t0 = time.perf_counter()
     G, J, path, uf, ham = _functions(ocp, n_steps)
@@ -163,19 +162,23 @@ def solve_pinpoint_min_time(ocp: PinpointOCP, direct_result, *, n_steps: int = 2
     tf = float(z[6])
     pos_err = np.linalg.norm(res[:3]) * s.length_m
     vel_err = np.linalg.norm(res[3:6]) * s.velocity_m_s
-    return {
-        "tf_s": tf * s.time_s, "fuel_kg": ocp.fuel_kg(tf),
-        "success": bool(pos_err < 1.0 and vel_err < 1e-2 and abs(res[6]) < 1e-6),
-        "initial_position_error_m": float(pos_err),
-        "initial_velocity_error_m_s": float(vel_err),
-        "hamiltonian_residual": float(res[6]),
-        "nfev": int(sol.nfev), "n_steps": int(n_steps), "wall_s": time.perf_counter() - t0,
-        "max_abs_u_m_s": float(np.max(np.abs(d["u_nd"])) * s.velocity_m_s),
-        "max_abs_w_m_s": float(np.max(np.abs(d["w_nd"])) * s.velocity_m_s),
-        "min_alpha_deg": float(np.degrees(U[:, 0].min())),
-        "min_beta_deg": float(np.degrees(U[:, 1].min())),
-        "costate_tf": z[:6].tolist(),
-    }
+    ok = bool(pos_err < 1.0 and vel_err < 1e-2 and abs(res[6]) < 1e-6)
+    fuel = ocp.fuel_kg(tf)
+    return OptimResult(
+        x=z.copy(), fuel_kg=fuel, tf_s=tf * s.time_s,
+        terminal_errors={"initial_position_m": float(pos_err),
+                         "initial_velocity_m_s": float(vel_err),
+                         "hamiltonian_residual": float(res[6])},
+        history=np.array([fuel]), n_fevals=int(sol.nfev), n_iter=int(sol.nfev),
+        wall_s=time.perf_counter() - t0, success=ok,
+        message=("converged" if ok else "did not converge") + f" ({sol.message})", fun=fuel,
+        feasible=ok, algorithm="Pontryagin shooting backward from the target (LM)",
+        problem=repr(ocp),
+        extra={"max_abs_u_m_s": float(np.max(np.abs(d["u_nd"])) * s.velocity_m_s),
+               "max_abs_w_m_s": float(np.max(np.abs(d["w_nd"])) * s.velocity_m_s),
+               "min_alpha_deg": float(np.degrees(U[:, 0].min())),
+               "min_beta_deg": float(np.degrees(U[:, 1].min())),
+               "costate_tf": z[:6].tolist(), "n_steps": int(n_steps)})
 
 
 def _selftest() -> None:  # pragma: no cover - manual

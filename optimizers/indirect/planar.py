@@ -294,6 +294,10 @@ class PontryaginSolution(OptimResult):
         return Trajectory(t_s=t_s, states=states,
                           controls={"phi_rad": phi, "throttle": np.ones(n)})
 
+    def control_at(self, t_s: float) -> np.ndarray:
+        """(φ*(t), throttle 1) of the extremal at ``t_s`` seconds (clipped to [0, tf])."""
+        return np.array([float(self.thrust_angle_at(float(t_s))), 1.0])
+
     def as_result(self, n_trajectory: int = 201) -> PontryaginSolution:
         """This result with ``trajectory`` sampled at ``n_trajectory`` times."""
         return dataclasses.replace(self, trajectory=self.sample(n_trajectory),
@@ -459,6 +463,11 @@ def solve_planar_min_fuel(
         raise ValueError(f"check = {check!r} is not one of {_CHECKS}")
     g = _as_guess(guess)
     solver = _solver(ocp, n_steps, n_jac_steps)
+    at_target, _ = ocp.success_from(ocp.terminal_errors(x0))
+    if at_target:  # tf = 0 is the degenerate optimum: no extremal to shoot for
+        return _finish(ocp, solver, np.array([0.0, 0.0, 0.0, 0.0, 0.0]), math.inf, False,
+                       ["none: the initial state already meets the terminal conditions"], [],
+                       [], 0, 0, check, tol, t_start, None)
     n_evals0 = solver.n_fine_evals
     history: list[float] = []
     iterates: list[np.ndarray] = []
@@ -542,9 +551,10 @@ def _finish(ocp: PlanarOCP, solver: _Solver, p, nrm, ok, attempts, history, iter
     if z_grid is not None:
         sol._cache["z"] = z_grid
     if not converged:
-        # errors of the last iterate of *this* initial state when there is one, else unknown
-        # (never 0.0: a failed solve has no terminal accuracy to report)
-        sol.terminal_errors = (ocp.terminal_errors(z_grid[:5, -1]) if z_grid is not None
+        # errors of the last iterate of *this* initial state when it is a real trajectory
+        # (tf > 0), else unknown: a failed solve has no terminal accuracy to report
+        real = z_grid is not None and math.isfinite(tf_nd) and tf_nd > 1e-9
+        sol.terminal_errors = (ocp.terminal_errors(z_grid[:5, -1]) if real
                                else {k: math.nan for k in _ERROR_KEYS})
         sol.message = (f"shooting did not converge ({how}); best residual {nrm:.2e} "
                        f"(tol {tol:.0e})")

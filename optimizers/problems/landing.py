@@ -46,7 +46,7 @@ from lunar_env.integrators import PLANAR, integrate, integrate_prepared
 from lunar_env.scenarios import PlanarScenario
 
 from ..common.problem import PenaltyGroup, Problem
-from ..common.result import Trajectory
+from ..common.result import ControlLaw, Trajectory
 from ..parameterisations import NodePolynomial
 
 __all__ = ["PlanarLandingProblem", "PenalisedProblem", "DEFAULT_N_STEPS"]
@@ -300,6 +300,18 @@ class PlanarLandingProblem(Problem):
                           f"terminal conditions NOT met ({crit}): |dV| = "
                           f"{errors['speed_m_s']:.3g} m/s, dr = {errors['radius_m']:.3g} m")
 
+    def replay_verdict(self, errors: dict[str, float], path: dict[str, float]
+                       ) -> tuple[bool, str]:
+        """Verdict on a reference replay (:func:`optimizers.common.certify.certify`): this
+        problem's terminal tolerances and the OCP's path conditions."""
+        ok, why = self.success_from(None, None, errors, True)
+        if ok:
+            path_ok, path_why = self.ocp.success_from(
+                {k: 0.0 for k in self.ocp.tolerances}, path)
+            if not path_ok:
+                return False, path_why
+        return ok, why
+
     def fuel_tf(self, x: np.ndarray, f: np.ndarray) -> tuple[float, float]:
         return float(self.fuel_kg_from_fitness(f[None, :])[0]), float(x[-1])
 
@@ -315,6 +327,20 @@ class PlanarLandingProblem(Problem):
         if self.objective == "fuel":
             return F[:, 0].copy()
         return (self.y0_nd[4] + F[:, 0]) * self.scaling.mass_kg
+
+    @property
+    def ocp(self):
+        """The continuous problem this parameterisation approximates
+        (:class:`~optimizers.problems.planar_ocp.PlanarOCP`, same scenario and initial state):
+        its certified optimum is what :func:`optimizers.common.certify.certify` compares with."""
+        from .planar_ocp import PlanarOCP
+
+        return PlanarOCP(self.scenario, self.scenario.nd_to_si(self.y0_nd, self.scaling))
+
+    def control_law(self, x: np.ndarray) -> ControlLaw:
+        """(φ(t), throttle 1) of the fitted polynomial on SI time, picklable."""
+        return ControlLaw(self.control(np.asarray(x, dtype=np.float64)[None, :])[0],
+                          self.scaling.time_s)
 
     # ---- decoding -------------------------------------------------------------------------
     def thrust_angle_rad(self, x: np.ndarray, t_s: np.ndarray) -> np.ndarray:

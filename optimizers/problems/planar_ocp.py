@@ -141,6 +141,27 @@ class PlanarOCP(OCP):
         return {"radius_m": float(dr), "radial_velocity_m_s": float(abs(dv)),
                 "tangential_velocity_m_s": float(abs(dvt)), "speed_m_s": float(math.hypot(dv, dvt))}
 
+    @property
+    def model(self):
+        from lunar_env.integrators import PLANAR
+
+        return PLANAR
+
+    def path_quantities(self, states_nd: np.ndarray) -> dict[str, float]:
+        """``min_altitude_m`` above the scenario's surface and ``final_mass_kg``."""
+        y = np.atleast_2d(states_nd)
+        s = self._scaling
+        return {"min_altitude_m": float(np.min(y[:, dyn.R])) * s.length_m
+                - self.scenario.surface_radius_m,
+                "final_mass_kg": float(y[-1, dyn.M]) * s.mass_kg}
+
+    def _solve_certified(self):
+        """Pontryagin's optimum (:func:`optimizers.indirect.planar.solve_planar_min_fuel`,
+        terminal errors from a DOP853 replay)."""
+        from ..indirect.planar import solve_planar_min_fuel
+
+        return solve_planar_min_fuel(self, check="reference")
+
     def success_from(self, errors, path=None) -> tuple[bool, str]:
         ok, why = super().success_from(errors, path)
         path = path or {}

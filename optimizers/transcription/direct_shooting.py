@@ -39,8 +39,9 @@ import numpy as np
 from lunar_env.integrators import MOON3D, integrate
 
 from ..common.casadi_tools import casadi as _casadi
-from ..common.casadi_tools import ipopt_options
+from ..common.casadi_tools import ipopt_options, nlp_counts, rk4_step
 from ..common.quadrature import legendre_gauss
+from ..common.result import OptimResult
 
 __all__ = ["DirectShooting", "ShootingSolution", "gauss_segment_fractions"]
 
@@ -63,8 +64,13 @@ def gauss_segment_fractions(n_gauss: int, k_per_interval: int) -> np.ndarray:
 
 
 @dataclass
-class ShootingSolution:
-    """Outcome of a direct-shooting solve (normalised units).
+class ShootingSolution(OptimResult):
+    """:class:`~optimizers.common.result.OptimResult` of a direct-shooting solve, with its
+    arrays (normalised units).
+
+    ``x`` is the NLP's decision vector; ``terminal_errors`` those of the transcription's final
+    state; ``history`` the fuel (kg) per IPOPT iteration; ``success`` IPOPT's convergence and
+    the problem's verdict (terminal conditions and the path quantities at the nodes).
 
     Attributes
     ----------
@@ -75,23 +81,17 @@ class ShootingSolution:
         Node controls (α, β) in rad; linear in between.
     states : ndarray, shape (n_nodes, n_state)
         States at the nodes from the CasADi RK4 transcription.
-    success : bool
-    message : str
     iterations : int
-    wall_s : float
+        IPOPT iterations (= ``n_iter``).
     n_rk4_per_segment : int
     """
 
-    tf_nd: float
-    t_nodes_nd: np.ndarray
-    controls: np.ndarray
-    states: np.ndarray
-    success: bool
-    message: str
-    iterations: int
-    wall_s: float
-    n_rk4_per_segment: int
-    x: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tf_nd: float = float("nan")
+    t_nodes_nd: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    controls: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    states: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
+    iterations: int = 0
+    n_rk4_per_segment: int = 1
 
     def control_law(self):
         """The control as a batch-1 :class:`~lunar_env.integrators.PiecewisePolynomial`."""
@@ -179,17 +179,9 @@ class DirectShooting:
         tf = sym.sym("tf")
         x0 = sym.sym("x0", nx)
         # one RK4 step with a control linear in time, u(τ) = ua + slope·τ
+        step = rk4_step(ocp.rhs, nx, nu, control_slope=True)
         xs = ca.SX.sym("xs", nx)
         ua = ca.SX.sym("ua", nu)
-        slope = ca.SX.sym("slope", nu)
-        tau0 = ca.SX.sym("tau0")
-        h = ca.SX.sym("h")
-        k1 = ocp.rhs(xs, ua + slope * tau0)
-        k2 = ocp.rhs(xs + h / 2 * k1, ua + slope * (tau0 + h / 2))
-        k3 = ocp.rhs(xs + h / 2 * k2, ua + slope * (tau0 + h / 2))
-        k4 = ocp.rhs(xs + h * k3, ua + slope * (tau0 + h))
-        step = ca.Function("rk4_step", [xs, ua, slope, tau0, h],
-                           [xs + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
         m = self.n_rk4_per_segment
         # one segment: m RK4 steps with the control linear from ua to ub over hseg
         ub = ca.SX.sym("ub", nu)
@@ -299,8 +291,16 @@ class DirectShooting:
         nc = b["n_ctrl_vars"]
         tf = float(z[nc - 1])
         states = np.asarray(b["nodes"](z, x0)).T
+        n_f, n_it = nlp_counts(b["solver"])
+        errors = ocp.terminal_errors(states[-1])
+        verdict, why = ocp.success_from(errors, ocp.path_quantities(states))
+        fuel = ocp.fuel_kg(tf)
+        history = [ocp.fuel_kg(v) for v in st.get("iterations", {}).get("obj", [])]
         return ShootingSolution(
-            tf_nd=tf, t_nodes_nd=tf * self.fractions, controls=z[:nc - 1].reshape(-1, nu),
-            states=states, success=bool(st["success"]), message=str(st["return_status"]),
-            iterations=int(st["iter_count"]), wall_s=time.perf_counter() - t_start,
-            n_rk4_per_segment=self.n_rk4_per_segment, x=z)
+            x=z, fuel_kg=fuel, tf_s=tf * ocp.scaling.time_s, terminal_errors=errors,
+            history=np.asarray(history or [fuel]), n_fevals=n_f, n_iter=n_it,
+            wall_s=time.perf_counter() - t_start, success=bool(st["success"]) and bool(verdict),
+            message=f"IPOPT: {st['return_status']}; {why}", fun=fuel, algorithm=repr(self),
+            problem=repr(ocp), tf_nd=tf, t_nodes_nd=tf * self.fractions,
+            controls=z[:nc - 1].reshape(-1, nu), states=states, iterations=n_it,
+            n_rk4_per_segment=self.n_rk4_per_segment)

@@ -18,7 +18,8 @@ solution; then solve the original problem from it". Phase 1 here minimises the s
 of all equality residuals (collocation, quadrature, boundary) subject to the bounds and path
 inequalities; phase 2 minimises the true objective from the phase-1 point.
 
-Problem protocol (duck-typed; :class:`optimizers.problems.PinpointOCP` implements it):
+Problem: an :class:`optimizers.common.ocp.OCP` (e.g. :class:`optimizers.problems.pinpoint.
+PinpointOCP`); the transcription uses:
 
 ``n_state``, ``n_control`` : int
 ``rhs(x, u)`` : CasADi right-hand side (from the shared dynamics core)
@@ -40,11 +41,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..common.casadi_tools import casadi as _casadi
-from ..common.casadi_tools import ipopt_options
+from ..common.casadi_tools import ipopt_options, nlp_counts
 from ..common.quadrature import (
     gauss_differentiation_matrix,
     legendre_gauss,
 )
+from ..common.result import OptimResult
 
 __all__ = [
     "legendre_gauss", "gauss_differentiation_matrix", "GaussPseudospectral", "GPMGuess",
@@ -72,8 +74,14 @@ class GPMGuess:
 
 
 @dataclass
-class GPMSolution:
-    """Solution of a GPM transcription.
+class GPMSolution(OptimResult):
+    """:class:`~optimizers.common.result.OptimResult` of a GPM transcription, with its arrays.
+
+    ``x`` is the NLP's decision vector; ``fuel_kg``/``tf_s`` from the problem;
+    ``terminal_errors`` those of the quadrature final state X_f; ``history`` the fuel (kg) per
+    IPOPT iteration of the last phase; ``n_fevals``/``n_iter`` objective evaluations and
+    iterations summed over the phases; ``success`` IPOPT's convergence and the problem's
+    verdict.
 
     Attributes
     ----------
@@ -86,25 +94,19 @@ class GPMSolution:
         X_0, X_1..X_N, X_f.
     controls : ndarray, shape (N, n_control)
         U_1..U_N at the LG points.
-    success : bool
-    message : str
-        IPOPT's return status of the last phase.
     phases : list of dict
         Per phase: ``name``, ``status``, ``success``, ``iterations``, ``wall_s``,
         ``objective``, ``max_eq_residual``.
-    wall_s : float
+    max_eq_residual : float
     """
 
-    tf_nd: float
-    tau: np.ndarray
-    t_nd: np.ndarray
-    states: np.ndarray
-    controls: np.ndarray
-    success: bool
-    message: str
+    tf_nd: float = float("nan")
+    tau: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    t_nd: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    states: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    controls: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     phases: list = field(default_factory=list)
-    wall_s: float = 0.0
-    max_eq_residual: float = np.nan
+    max_eq_residual: float = float("nan")
 
     @property
     def t_lg_nd(self) -> np.ndarray:
@@ -302,7 +304,19 @@ class GaussPseudospectral:
                            max_eq_residual=eq_res))
         X, Xf, U, tf = self._unpack(z, nx, nu)
         t_nodes = tf * (np.concatenate([[-1.0], self.tau, [1.0]]) + 1.0) / 2.0
+        n_f = sum(nlp_counts(b[k])[0] for k in (("feas", "opt") if self.feasible_first
+                                                 else ("opt",)))
+        converged = bool(st["success"])
+        errors = ocp.terminal_errors(Xf)
+        states = np.vstack([X, Xf])
+        verdict, why = ocp.success_from(errors, ocp.path_quantities(states))
+        fuel = ocp.fuel_kg(tf)
+        history = [ocp.fuel_kg(v) for v in st.get("iterations", {}).get("obj", [])]
         return GPMSolution(
-            tf_nd=tf, tau=self.tau.copy(), t_nd=t_nodes, states=np.vstack([X, Xf]),
-            controls=U, success=bool(st["success"]), message=str(st["return_status"]),
-            phases=phases, wall_s=time.perf_counter() - t_start, max_eq_residual=eq_res)
+            x=z, fuel_kg=fuel, tf_s=tf * ocp.scaling.time_s, terminal_errors=errors,
+            history=np.asarray(history or [fuel]), n_fevals=n_f,
+            n_iter=sum(p["iterations"] for p in phases), wall_s=time.perf_counter() - t_start,
+            success=converged and bool(verdict), message=f"IPOPT: {st['return_status']}; {why}",
+            fun=fuel, algorithm=repr(self), problem=repr(ocp),
+            tf_nd=tf, tau=self.tau.copy(), t_nd=t_nodes, states=states, controls=U,
+            phases=phases, max_eq_residual=eq_res)

@@ -30,7 +30,7 @@ from scipy.interpolate import CubicSpline
 
 from lunar_env.scenarios import PinpointScenario, get_scenario
 
-from ..common.result import OptimResult, Trajectory
+from ..common.result import ControlLaw, OptimResult, Trajectory
 from ..problems.pinpoint import PinpointOCP, piecewise_linear_control
 from .direct_shooting import DirectShooting, ShootingSolution, gauss_segment_fractions
 from .gpm import GaussPseudospectral, GPMGuess, GPMSolution, legendre_gauss
@@ -241,10 +241,14 @@ def _result(ocp: PinpointOCP, ssol: ShootingSolution, gsol: GPMSolution | None, 
         "shooting_solution": ssol,
         "replay_max_abs_diff_nd": replay_diff,
     }
-    n_iter = ssol.iterations
-    history = [ssol.tf_nd * s.time_s]
-    success = ssol.success
-    message = f"shooting: {ssol.message}"
+    n_iter = ssol.n_iter
+    n_fevals = ssol.n_fevals
+    history = list(ssol.history)
+    # the problem's verdict on the replayed trajectory: terminal conditions, above the surface
+    # everywhere, fuel budget (a converged NLP through the Moon is no landing)
+    verdict, why = ocp.success_from(errors, ocp.path_quantities(x_rep))
+    success = bool(ssol.success) and bool(verdict)
+    message = f"shooting: {ssol.message.split(';')[0]}; replay: {why}"
     if gsol is not None:
         extra["gpm"] = {
             "t_s": gsol.t_lg_nd * s.time_s, "alpha_rad": gsol.controls[:, 0],
@@ -253,14 +257,18 @@ def _result(ocp: PinpointOCP, ssol: ShootingSolution, gsol: GPMSolution | None, 
             "status": gsol.message, "phases": gsol.phases, "wall_s": gsol.wall_s,
         }
         extra["gpm_solution"] = gsol
-        n_iter += sum(p["iterations"] for p in gsol.phases)
-        history = [gsol.tf_nd * s.time_s] + history
-        message = f"gpm: {gsol.message}; {message}"
+        n_iter += gsol.n_iter
+        n_fevals += gsol.n_fevals
+        history = list(gsol.history) + history
+        message = f"gpm: {gsol.message.split(';')[0]}; {message}"
+    fuel = ocp.fuel_kg(ssol.tf_nd)
     return OptimResult(
-        x=ssol.x, fuel_kg=ocp.fuel_kg(ssol.tf_nd), tf_s=ssol.tf_nd * s.time_s,
-        terminal_errors=errors, history=np.asarray(history), n_fevals=int(n_iter),
-        wall_s=float(wall_s), success=bool(success), message=message, trajectory=traj,
-        extra=extra)
+        x=ssol.x, fuel_kg=fuel, tf_s=ssol.tf_nd * s.time_s, terminal_errors=errors,
+        history=np.asarray(history), n_fevals=int(n_fevals), n_iter=int(n_iter),
+        wall_s=float(wall_s), success=success, message=message, trajectory=traj, extra=extra,
+        fun=fuel, feasible=bool(verdict), algorithm="GPM (feasible first) + direct shooting"
+        if gsol is not None else "direct shooting", problem=repr(ocp),
+        control=ControlLaw(pp, s.time_s))
 
 
 _SOLVERS: dict[tuple, SerialSolver] = {}
@@ -301,8 +309,11 @@ def solve_serial(scenario="peng2012", guess: ControlGuess | None = None, *,
     -------
     OptimResult
         ``tf_s``, ``fuel_kg``; ``terminal_errors`` from replaying the control with
-        :func:`lunar_env.integrators.integrate`; ``extra["gpm"]`` (the GPM stage) and
-        ``extra["shooting"]``; ``n_fevals`` counts IPOPT iterations of all NLPs.
+        :func:`lunar_env.integrators.integrate`; ``success`` the NLPs converged and the
+        problem's verdict on that replay (terminal conditions, never below the surface, fuel
+        budget); ``extra["gpm"]`` (the GPM stage) and ``extra["shooting"]``; ``n_fevals``
+        IPOPT objective evaluations and ``n_iter`` IPOPT iterations of all NLPs; ``history``
+        the fuel (kg) per iteration; ``control`` the (α, β, throttle) law on SI time.
     """
     return _solver(scenario, **kwargs).solve(guess, initial_state=initial_state)
 
@@ -323,7 +334,9 @@ def dense_collocation_check(result: OptimResult, problem="peng2012", *,
     A single-interval GPM with ``n_nodes`` LG points converges spectrally to the true optimum of
     the continuous problem (for a smooth solution), independently of the shooting
     transcription's control parameterisation and RK4 steps. Returns, per N, tf (s), fuel (kg),
-    the IPOPT status, and the gap of the serial result to the densest converged one.
+    the IPOPT status, and the gap of the serial result to the densest converged one; the
+    densest converged :class:`~optimizers.transcription.gpm.GPMSolution` is
+    ``out["reference_result"]`` (for :func:`optimizers.common.certify.certify`).
     """
     ocp = _as_ocp(problem)
     s = ocp.scaling
@@ -332,6 +345,7 @@ def dense_collocation_check(result: OptimResult, problem="peng2012", *,
     u = ssol.control_law()(t_rep[None, :])[0, :, :2]
     guess = GPMGuess(ssol.tf_nd, t_rep, x_rep, u)
     out = {"runs": []}
+    best_sol = None
     for n in n_nodes_list:
         gpm = GaussPseudospectral(int(n), feasible_first=False, tol=tol, max_iter=1000)
         t0 = time.perf_counter()
@@ -339,6 +353,8 @@ def dense_collocation_check(result: OptimResult, problem="peng2012", *,
         out["runs"].append({"n_nodes": int(n), "tf_s": sol.tf_nd * s.time_s,
                             "fuel_kg": ocp.fuel_kg(sol.tf_nd), "success": sol.success,
                             "status": sol.message, "wall_s": time.perf_counter() - t0})
+        if sol.success:
+            best_sol = sol
     ok = [r for r in out["runs"] if r["success"]]
     if ok:
         best = ok[-1]
@@ -346,4 +362,23 @@ def dense_collocation_check(result: OptimResult, problem="peng2012", *,
         out["reference_fuel_kg"] = best["fuel_kg"]
         out["serial_minus_reference_tf_s"] = result.tf_s - best["tf_s"]
         out["serial_minus_reference_fuel_kg"] = result.fuel_kg - best["fuel_kg"]
+        out["reference_result"] = best_sol
     return out
+
+
+def certified_optimum(ocp: PinpointOCP, *, n_nodes: int = 40, tol: float = 1e-10) -> OptimResult:
+    """The pinpoint problem's certified optimum: the serial strategy from the nominal guess,
+    then a dense single-interval LG collocation (``n_nodes`` points) from its solution.
+
+    Returns the dense GPM's :class:`~optimizers.transcription.gpm.GPMSolution` (fuel, tf and
+    the problem's verdict), with the serial result in ``extra["serial"]``.
+    """
+    serial = _solver(ocp).solve(initial_state=ocp.initial_state)
+    ssol: ShootingSolution = serial.extra["shooting_solution"]
+    t_rep, x_rep = ssol.replay(ocp)
+    u = ssol.control_law()(t_rep[None, :])[0, :, :2]
+    gpm = GaussPseudospectral(int(n_nodes), feasible_first=False, tol=tol, max_iter=1000)
+    dense = gpm.solve(ocp, GPMGuess(ssol.tf_nd, t_rep, x_rep, u))
+    dense.algorithm = f"dense LG collocation (N = {int(n_nodes)}) from the serial solution"
+    dense.extra["serial"] = serial
+    return dense
