@@ -42,7 +42,7 @@ def optimal_start_pool(scenario, n_trajectories: int, seed: int, n_points: int =
     times_s : ndarray, shape (n_ok, n_points)
         Time since the case's initial state (s).
     """
-    from optimizers.pontryagin import solve_many
+    from optimizers.indirect.batch import solve_many
 
     rng = np.random.default_rng(seed)
     rows = scenario.sample_initial(rng, int(n_trajectories))

@@ -266,7 +266,7 @@ def _shard_work(job: dict[str, Any]) -> dict[str, np.ndarray]:
     """Solve, sample and certify one shard (runs in a worker process)."""
     import warnings
 
-    from optimizers.pontryagin import solve_many
+    from optimizers.indirect.batch import solve_many
 
     env = _make_env(job["env_id"], job["env_kwargs"])
     sc = env.scenario

@@ -415,7 +415,7 @@ def optimal_solutions(scenario, states_nd: np.ndarray, progress: bool = True):
     solutions : list of PontryaginSolution
     wall_s : float
     """
-    from optimizers.pontryagin import solve_many
+    from optimizers.indirect.batch import solve_many
 
     states_si = planar_state_si(scenario, states_nd)
     t0 = time.perf_counter()

@@ -19,7 +19,7 @@ import numpy as np
 
 from lunar_env.integrators import PiecewisePolynomial
 
-__all__ = ["NodePolynomial"]
+__all__ = ["NodePolynomial", "piecewise_linear_control"]
 
 
 class NodePolynomial:
@@ -163,3 +163,29 @@ class NodePolynomial:
         breaks[:, 0] = t0
         breaks[:, 1] = tf
         return breaks, coefs
+
+
+def piecewise_linear_control(breaks_nd: np.ndarray, control_nodes_rad: np.ndarray,
+                             throttle: float = 1.0) -> PiecewisePolynomial:
+    """Controls linear between nodes plus a constant throttle, as a batch-1
+    PiecewisePolynomial ([001] eq. (18): the direct-shooting control law).
+
+    Parameters
+    ----------
+    breaks_nd : ndarray, shape (n_nodes,)
+    control_nodes_rad : ndarray, shape (n_nodes, 2)
+    """
+    b = np.asarray(breaks_nd, dtype=float)
+    u = np.asarray(control_nodes_rad, dtype=float)
+    if b.ndim != 1 or u.shape != (len(b), 2):
+        raise ValueError(f"breaks shape {b.shape} and control nodes shape {u.shape} do not "
+                         "match; expected (n,) and (n, 2)")
+    h = np.diff(b)
+    if np.any(h <= 0):
+        raise ValueError("control node times must be strictly increasing")
+    n_seg = len(b) - 1
+    coefs = np.zeros((1, n_seg, 3, 2))
+    coefs[0, :, :2, 0] = u[:-1]
+    coefs[0, :, :2, 1] = (u[1:] - u[:-1]) / h[:, None]
+    coefs[0, :, 2, 0] = throttle
+    return PiecewisePolynomial(b[None, :], coefs)

@@ -340,7 +340,7 @@ def test_pontryagin_optimum_replayed_scores_at_least_as_well(optimal_cubic):
     """Second, independent reference: the indirect (Pontryagin) optimum of
     :mod:`optimizers.pontryagin`, sampled at the step midpoints, lands softly and its return is
     at least that of the cubic law (it is the better optimum)."""
-    from optimizers.pontryagin import solve_planar_min_fuel
+    from optimizers.indirect.planar import solve_planar_min_fuel
 
     c, tf_s, _ = optimal_cubic
     env = gym.make(ENV_ID).unwrapped

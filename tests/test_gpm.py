@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from lunar_env import get_scenario
-from lunar_env.dynamics import _casadi, moon3d_rhs
+from lunar_env.dynamics import moon3d_rhs
 from lunar_env.integrators import MOON3D, integrate_reference
 from lunar_env.scaling import Scaling
+from optimizers.common.casadi_tools import casadi as _casadi
 from optimizers.common.ocp import OCP
 from optimizers.direct_shooting import DirectShooting, gauss_segment_fractions
 from optimizers.gpm import (

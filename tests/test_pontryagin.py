@@ -5,12 +5,12 @@ import pytest
 
 from lunar_env import dynamics as dyn
 from lunar_env.scenarios import get_scenario
+from optimizers.indirect.batch import solve_many
 from optimizers.indirect.planar import (
     PontryaginGuess,
     hamiltonian,
     optimal_thrust_angle,
     replay_reference,
-    solve_many,
     solve_planar_min_fuel,
 )
 from optimizers.indirect.planar_system import system_for

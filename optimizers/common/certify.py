@@ -4,8 +4,8 @@
 initial state with the adaptive reference integrator (scipy DOP853 on the shared right-hand
 side, :func:`lunar_env.integrators.integrate_reference`), judges the replayed final state by the
 problem's own terminal and path conditions, and compares the result's fuel and final time with
-the problem's certified optimum (:meth:`optimizers.common.ocp.OCP.certified_optimum`: Pontryagin
-for the planar problems, dense Legendre–Gauss collocation for the pinpoint landing), or with a
+the problem's certified optimum (:func:`certified_optimum`: Pontryagin for the planar problems,
+dense Legendre–Gauss collocation for the pinpoint landing), or with a
 ``reference`` the caller supplies. Every reproduction reports its solvers through it.
 
 >>> from optimizers.problems import PlanarLandingProblem        # doctest: +SKIP
@@ -16,13 +16,16 @@ for the planar problems, dense Legendre–Gauss collocation for the pinpoint lan
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from .result import OptimResult
 
-__all__ = ["Certificate", "certify", "replay_reference"]
+__all__ = ["Certificate", "certify", "certified_optimum", "replay_reference"]
+
+_CERTIFIED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 @dataclass
@@ -71,6 +74,41 @@ def _ocp_of(problem):
     return ocp
 
 
+def certified_optimum(ocp) -> OptimResult:
+    """The problem's optimum by its certifier, computed once per problem object.
+
+    - :class:`~optimizers.problems.planar_ocp.PlanarOCP`: Pontryagin shooting
+      (:func:`optimizers.indirect.planar.solve_planar_min_fuel`, errors from a DOP853 replay);
+    - :class:`~optimizers.problems.pinpoint.PinpointOCP`: dense Legendre–Gauss collocation
+      (N = 40) from the serial strategy's solution
+      (:func:`optimizers.transcription.serial.certified_optimum`).
+
+    Raises
+    ------
+    TypeError
+        For a problem with no certifier (pass ``reference=`` to :func:`certify`).
+    """
+    cached = _CERTIFIED.get(ocp)
+    if cached is not None:
+        return cached
+    from ..problems.pinpoint import PinpointOCP
+    from ..problems.planar_ocp import PlanarOCP
+
+    if isinstance(ocp, PlanarOCP):
+        from ..indirect.planar import solve_planar_min_fuel
+
+        ref = solve_planar_min_fuel(ocp, check="reference")
+    elif isinstance(ocp, PinpointOCP):
+        from ..transcription.serial import certified_optimum as dense_optimum
+
+        ref = dense_optimum(ocp)
+    else:
+        raise TypeError(f"no certifier for {type(ocp).__name__}; pass the optimum as "
+                        "certify(..., reference=...)")
+    _CERTIFIED[ocp] = ref
+    return ref
+
+
 def replay_reference(result: OptimResult, problem, *, rtol: float = 1e-12,
                      n_samples: int = 401) -> tuple[np.ndarray, np.ndarray]:
     """Replay ``result``'s control from the problem's initial state with DOP853.
@@ -108,7 +146,7 @@ def certify(result: OptimResult, problem, *, reference: OptimResult | None = Non
     problem : OCP or Problem with an ``ocp``
         The problem the result solves (its initial state, dynamics and verdict).
     reference : OptimResult, optional
-        The optimum to compare with; default ``ocp.certified_optimum()``.
+        The optimum to compare with; default :func:`certified_optimum` of the problem.
     rtol : float
         DOP853 relative tolerance of the replay.
 
@@ -124,7 +162,7 @@ def certify(result: OptimResult, problem, *, reference: OptimResult | None = Non
     # terminal tolerances than its OCP, e.g. [000]'s 0.5 m/s)
     judge = getattr(problem, "replay_verdict", None) or ocp.success_from
     ok, why = judge(errors, path)
-    ref = reference if reference is not None else ocp.certified_optimum()
+    ref = reference if reference is not None else certified_optimum(ocp)
     cert = Certificate(errors, bool(ok), why, path, float(ref.fuel_kg), float(ref.tf_s),
                        ref.algorithm or type(ref).__name__, bool(ref.success))
     if math.isfinite(result.fuel_kg) and math.isfinite(ref.fuel_kg):

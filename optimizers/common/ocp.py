@@ -117,16 +117,3 @@ class OCP(ABC):
         """Path quantities of a trajectory (n, n_state) that :meth:`success_from` judges
         (e.g. ``min_altitude_m``, ``final_mass_kg``); default none."""
         return {}
-
-    def certified_optimum(self):
-        """This problem's optimum by its certifier (an :class:`~optimizers.common.result.
-        OptimResult` from an indirect or dense-collocation solve), computed once and cached."""
-        cached = getattr(self, "_certified", None)
-        if cached is None:
-            cached = self._solve_certified()
-            self._certified = cached
-        return cached
-
-    def _solve_certified(self):
-        raise NotImplementedError(f"{type(self).__name__} names no certifier; pass the "
-                                  "reference optimum to certify(..., reference=...)")

@@ -91,7 +91,7 @@ Public API
 :func:`solve_planar_min_fuel`, :class:`PontryaginSolution` (an :class:`~optimizers.common.
 result.OptimResult`), :class:`PontryaginGuess`, :func:`nominal_guess`, :func:`replay_reference`;
 the state–costate system is in :mod:`.planar_system`, the Newton iteration in :mod:`.newton`,
-batches in :mod:`.batch` (:func:`solve_many`, re-exported here), the command line in
+batches in :mod:`.batch` (:func:`~.batch.solve_many`), the command line in
 :mod:`.cli`. The closed-loop re-planning expert built on them is
 :class:`agents.experts.PontryaginExpert`.
 
@@ -120,9 +120,8 @@ from .newton import damped_newton
 from .planar_system import N_STATE, hamiltonian, optimal_thrust_angle, system_for
 
 __all__ = [
-    "PontryaginGuess", "PontryaginSolution", "solve_planar_min_fuel", "solve_many",
-    "nominal_guess", "nearest_neighbour_order", "optimal_thrust_angle", "hamiltonian",
-    "replay_reference",
+    "PontryaginGuess", "PontryaginSolution", "solve_planar_min_fuel", "nominal_guess",
+    "optimal_thrust_angle", "hamiltonian", "replay_reference",
 ]
 
 _CHECKS = ("reference", "doubling", "grid")
@@ -621,8 +620,3 @@ def replay_reference(sol: PontryaginSolution, *, rtol: float = 1e-13,
     out = integrate_reference(PLANAR, sol.x0_nd, (0.0, sol.tf_nd), control,
                               sol.ocp.params, rtol=rtol, atol=atol)
     return out.y[:, -1]
-
-
-# solve_many and nearest_neighbour_order live in .batch (which imports this module); they are
-# re-exported here for the 0.1 API (``from optimizers.pontryagin import solve_many``).
-from .batch import nearest_neighbour_order, solve_many  # noqa: E402

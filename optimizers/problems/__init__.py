@@ -1,5 +1,9 @@
-"""Optimisation problems built on the shared lunar_env dynamics (pygmo UDP conventions)."""
+"""Problems, each stated once: black-box :class:`~optimizers.common.problem.Problem` s for the
+global optimisers and :class:`~optimizers.common.ocp.OCP` s for the transcriptions and the
+indirect solvers, on the shared lunar_env dynamics."""
 
 from .landing import PenalisedProblem, PlanarLandingProblem
+from .pinpoint import PinpointOCP
+from .planar_ocp import PlanarOCP
 
-__all__ = ["PlanarLandingProblem", "PenalisedProblem"]
+__all__ = ["PlanarLandingProblem", "PenalisedProblem", "PlanarOCP", "PinpointOCP"]

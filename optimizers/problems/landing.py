@@ -38,6 +38,8 @@ paper's runs differ; ``tests/test_landing_problem.py`` checks it.
 
 from __future__ import annotations
 
+import functools
+
 import numba
 import numpy as np
 
@@ -328,7 +330,7 @@ class PlanarLandingProblem(Problem):
             return F[:, 0].copy()
         return (self.y0_nd[4] + F[:, 0]) * self.scaling.mass_kg
 
-    @property
+    @functools.cached_property
     def ocp(self):
         """The continuous problem this parameterisation approximates
         (:class:`~optimizers.problems.planar_ocp.PlanarOCP`, same scenario and initial state):

@@ -37,13 +37,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lunar_env import dynamics as dyn
-from lunar_env.integrators import MOON3D, PiecewisePolynomial, integrate
+from lunar_env.integrators import MOON3D, integrate
 from lunar_env.scenarios import PinpointScenario
 
 from ..common.casadi_tools import casadi as _casadi_module
 from ..common.ocp import OCP
+from ..parameterisations import piecewise_linear_control
 
-__all__ = ["PinpointOCP"]
+__all__ = ["PinpointOCP", "piecewise_linear_control"]
 
 
 def _ca():
@@ -279,14 +280,6 @@ class PinpointOCP(OCP):
             return False, f"uses more than the {self.scenario.fuel_max_kg:g} kg fuel budget"
         return ok, why
 
-    def _solve_certified(self):
-        """Dense Legendre–Gauss collocation (N = 40) started from the serial strategy's
-        solution: spectral convergence to the continuous optimum, independent of the shooting
-        grid (see :func:`optimizers.transcription.serial.dense_collocation_check`)."""
-        from ..transcription.serial import certified_optimum
-
-        return certified_optimum(self)
-
     def terminal_errors(self, xf_nd: np.ndarray) -> dict[str, float]:
         """SI terminal errors of a final state (7,): miss distance, speed error, altitude error."""
         s = self.scaling
@@ -297,28 +290,3 @@ class PinpointOCP(OCP):
         alt = d["radius_nd"][0] * s.length_m - self.scenario.body.radius_m
         return {"position_m": float(pos_err), "velocity_m_s": float(vel_err),
                 "altitude_m": float(alt - self.scenario.target.altitude_m)}
-
-
-def piecewise_linear_control(breaks_nd: np.ndarray, control_nodes_rad: np.ndarray,
-                             throttle: float = 1.0) -> PiecewisePolynomial:
-    """(α, β) linear between nodes plus a constant throttle, as a batch-1 PiecewisePolynomial.
-
-    Parameters
-    ----------
-    breaks_nd : ndarray, shape (n_nodes,)
-    control_nodes_rad : ndarray, shape (n_nodes, 2)
-    """
-    b = np.asarray(breaks_nd, dtype=float)
-    u = np.asarray(control_nodes_rad, dtype=float)
-    if b.ndim != 1 or u.shape != (len(b), 2):
-        raise ValueError(f"breaks shape {b.shape} and control nodes shape {u.shape} do not "
-                         "match; expected (n,) and (n, 2)")
-    h = np.diff(b)
-    if np.any(h <= 0):
-        raise ValueError("control node times must be strictly increasing")
-    n_seg = len(b) - 1
-    coefs = np.zeros((1, n_seg, 3, 2))
-    coefs[0, :, :2, 0] = u[:-1]
-    coefs[0, :, :2, 1] = (u[1:] - u[:-1]) / h[:, None]
-    coefs[0, :, 2, 0] = throttle
-    return PiecewisePolynomial(b[None, :], coefs)

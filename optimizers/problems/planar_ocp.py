@@ -155,13 +155,6 @@ class PlanarOCP(OCP):
                 - self.scenario.surface_radius_m,
                 "final_mass_kg": float(y[-1, dyn.M]) * s.mass_kg}
 
-    def _solve_certified(self):
-        """Pontryagin's optimum (:func:`optimizers.indirect.planar.solve_planar_min_fuel`,
-        terminal errors from a DOP853 replay)."""
-        from ..indirect.planar import solve_planar_min_fuel
-
-        return solve_planar_min_fuel(self, check="reference")
-
     def success_from(self, errors, path=None) -> tuple[bool, str]:
         ok, why = super().success_from(errors, path)
         path = path or {}

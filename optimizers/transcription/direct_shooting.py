@@ -95,7 +95,7 @@ class ShootingSolution(OptimResult):
 
     def control_law(self):
         """The control as a batch-1 :class:`~lunar_env.integrators.PiecewisePolynomial`."""
-        from ..problems.pinpoint import piecewise_linear_control
+        from ..parameterisations import piecewise_linear_control
 
         return piecewise_linear_control(self.t_nodes_nd, self.controls)
 

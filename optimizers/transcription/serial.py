@@ -31,7 +31,8 @@ from scipy.interpolate import CubicSpline
 from lunar_env.scenarios import PinpointScenario, get_scenario
 
 from ..common.result import ControlLaw, OptimResult, Trajectory
-from ..problems.pinpoint import PinpointOCP, piecewise_linear_control
+from ..parameterisations import piecewise_linear_control
+from ..problems.pinpoint import PinpointOCP
 from .direct_shooting import DirectShooting, ShootingSolution, gauss_segment_fractions
 from .gpm import GaussPseudospectral, GPMGuess, GPMSolution, legendre_gauss
 
