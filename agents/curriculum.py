@@ -57,20 +57,6 @@ def optimal_start_pool(scenario, n_trajectories: int, seed: int, n_points: int =
     return np.asarray(states), np.asarray(times)
 
 
-def _set_states(native, idx: np.ndarray, state_nd: np.ndarray, t_s: np.ndarray) -> None:
-    """Put sub-envs ``idx`` of a native lander vector env at ``state_nd`` and clock ``t_s``.
-
-    Uses the env's public ``set_states`` when it has one; otherwise its batch directly
-    (``LanderBatch.set_state`` starts the episode's fuel count there, then the clock is set).
-    """
-    if hasattr(native, "set_states"):
-        native.set_states(idx, state_nd, t_s)
-        return
-    batch = native._batch
-    batch.set_state(idx, state_nd)
-    batch.t_nd[idx] = np.asarray(t_s, dtype=np.float64) / native._task.time_ref_s
-
-
 class OptimalStartCurriculum(VecEnvWrapper):
     """Start a share of the episodes from states on optimal trajectories (see module docstring).
 
@@ -141,7 +127,7 @@ class OptimalStartCurriculum(VecEnvWrapper):
         j = self.rng.integers(lo, hi, len(pick))
         y = self.pool_states[k, j]
         t_s = self.pool_times[k, j]
-        _set_states(self.native, pick, y, t_s)
+        self.native.set_states(pick, y, t_s)
         obs = np.array(obs, copy=True)
         obs[pick] = self.native.observation_from_state(y, t_s)
         self.n_curriculum_starts += len(pick)

@@ -225,40 +225,21 @@ def replay_labels(env_id: str, env_kwargs: dict[str, Any] | None, initial_state_
     dict with ``fuel_kg``, ``touchdown_speed_m_s`` (NaN if the episode was truncated), ``success``
     (arrays of length n_cases).
     """
-    import gymnasium as gym
-
-    import lunar_env  # noqa: F401
+    from agents.rollout import fly
 
     n = len(action_seqs)
-    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
-                        **(env_kwargs or {}))
-    try:
-        venv.reset(seed=0, options={"state_si": np.asarray(initial_state_si, dtype=np.float64)})
-        active = np.ones(n, dtype=bool)
-        fuel = np.full(n, np.nan)
-        speed = np.full(n, np.nan)
-        success = np.zeros(n, dtype=bool)
-        lens = np.array([len(a) for a in action_seqs])
-        n_act = action_seqs[0].shape[1]
-        k = 0
-        limit = int(lens.max()) + 100_000
-        while active.any() and k < limit:
-            act = np.empty((n, n_act), dtype=np.float32)
-            for i, seq in enumerate(action_seqs):
-                act[i] = seq[min(k, len(seq) - 1)]
-            _, _, term, trunc, info = venv.step(act)
-            ended = (np.asarray(term) | np.asarray(trunc)) & active
-            if ended.any():
-                e = np.flatnonzero(ended)
-                fuel[e] = np.asarray(info["fuel_used_kg"], dtype=np.float64)[e]
-                sp = np.asarray(info["touchdown_speed_m_s"], dtype=np.float64)
-                mask = np.asarray(info.get("_touchdown_speed_m_s", np.ones(n, bool)), dtype=bool)
-                speed[e] = np.where(mask, sp, np.nan)[e]
-                success[e] = np.asarray(info["is_success"], dtype=bool)[e]
-                active &= ~ended
-            k += 1
-    finally:
-        venv.close()
+    step = [0]
+
+    def act(obs, venv, active):
+        k = step[0]
+        step[0] += 1
+        return np.stack([seq[min(k, len(seq) - 1)] for seq in action_seqs]).astype(np.float32)
+
+    lens = np.array([len(a) for a in action_seqs])
+    out = fly(env_id, act, n, seed=0, env_kwargs=env_kwargs,
+              reset_options={"state_si": np.asarray(initial_state_si, dtype=np.float64)},
+              max_steps=int(lens.max()) + 100_000, name="open-loop replay")
+    fuel, speed, success = out.fuel_used_kg, out.touchdown_speed_m_s, out.is_success
     return {"fuel_kg": fuel, "touchdown_speed_m_s": speed, "success": success}
 
 
@@ -371,7 +352,7 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     out = Path(out)
     env = _make_env(env_id, env_kwargs)
     sc = env.scenario
-    dt_s = float(getattr(env, "dt_s", None) or env._task.dt_s)
+    dt_s = float(env.dt_s)
     obs_names = ["altitude/h0", "vr/(0.1 v0)", "v_t/v0", "propellant/nominal", "t/time_limit"]
     env.close()
     rows = sc.sample_initial(np.random.default_rng(int(seed)), int(n))

@@ -52,6 +52,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from agents.rollout import fly, make_vec
+from lunar_env.states import planar_nd_to_si
+
 __all__ = ["Policy", "SB3Policy", "OpenLoopPolicy", "ExpertPolicy", "PolicyResult",
            "initial_states", "rollout", "optimal_solutions", "compare", "markdown_table",
            "plot_comparison", "evaluate_run", "publish_report", "main"]
@@ -65,15 +68,6 @@ DEFAULT_EXPERT_STATES = 20
 # ----------------------------------------------------------------------------- env helpers
 
 
-def _make_vec(env_id: str, n: int, env_kwargs: dict[str, Any] | None):
-    import gymnasium as gym
-
-    import lunar_env  # noqa: F401  (registers the env ids)
-
-    return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
-                        **(env_kwargs or {}))
-
-
 def _core(venv):
     return getattr(venv, "unwrapped", venv)
 
@@ -83,25 +77,15 @@ def _is_planar(venv) -> bool:
 
 
 def planar_state_si(scenario, state_nd: np.ndarray) -> np.ndarray:
-    """Normalised planar states (r, vr, θ, ω, m) -> SI rows (r m, vr m/s, θ rad, v_t m/s, m kg).
-
-    Inverse of ``scenario.si_to_nd`` (v_t = r·ω).
-    """
-    s = scenario.scaling()
-    y = np.asarray(state_nd, dtype=np.float64)
-    out = np.empty_like(y)
-    out[:, 0] = y[:, 0] * s.length_m
-    out[:, 1] = y[:, 1] * s.velocity_m_s
-    out[:, 2] = y[:, 2]
-    out[:, 3] = y[:, 0] * y[:, 3] * s.velocity_m_s
-    out[:, 4] = y[:, 4] * s.mass_kg
-    return out
+    """Normalised planar states (r, vr, θ, ω, m) -> SI rows (r m, vr m/s, θ rad, v_t m/s, m kg)
+    (:func:`lunar_env.states.planar_nd_to_si` with the scenario's scaling)."""
+    return planar_nd_to_si(state_nd, scenario.scaling())
 
 
 def initial_states(env_id: str, n: int, seed: int, env_kwargs: dict[str, Any] | None = None
                    ) -> np.ndarray:
     """The normalised initial states (n, nx) of cases ``0..n-1`` for ``seed``."""
-    venv = _make_vec(env_id, n, env_kwargs)
+    venv = make_vec(env_id, n, env_kwargs)
     try:
         venv.reset(seed=seed)
         return np.array(_core(venv).state_nd, dtype=np.float64, copy=True)
@@ -155,32 +139,25 @@ class SB3Policy:
 
     @classmethod
     def from_path(cls, path: str | Path, name: str | None = None) -> SB3Policy:
-        """Load from a run directory or model ``.zip`` (see :func:`agents.train.load_trained`)."""
-        import yaml
-
-        from agents.train import load_trained
+        """Load from a run directory or model ``.zip`` (see :func:`agents.runs.load_trained`)."""
+        from agents.runs import load_trained, read_run
 
         model, vn_path, algo = load_trained(path)
-        p = Path(path)
-        run_dir = p if p.is_dir() else (p.parent.parent if p.parent.name == "checkpoints"
-                                        else p.parent)
-        cfg = run_dir / "config.yml"
-        hp = yaml.safe_load(cfg.read_text()) if cfg.exists() else {}
-        return cls(model, vn_path, name=name or algo.upper(),
-                   obs_features=(hp or {}).get("obs_features"))
+        hp = read_run(path)[1]
+        return cls(model, vn_path, name=name or algo.upper(), obs_features=hp.get("obs_features"))
 
     def reset(self, venv, case_ids: np.ndarray) -> None:
         if self.obs_features:
             from agents.features import feature_constants
 
-            self._feature_consts = feature_constants(_core(venv)._task)
+            self._feature_consts = feature_constants(_core(venv))
 
     def act(self, obs: np.ndarray, venv) -> np.ndarray:
         if self.obs_features:
             from agents.features import augment_observation, feature_constants
 
             if self._feature_consts is None:
-                self._feature_consts = feature_constants(_core(venv)._task)
+                self._feature_consts = feature_constants(_core(venv))
             obs = augment_observation(obs, self._feature_consts, self.obs_features)
         if self.vecnormalize is not None:
             obs = self.vecnormalize.normalize_obs(obs)
@@ -220,23 +197,13 @@ class OpenLoopPolicy:
 
     def act(self, obs: np.ndarray, venv) -> np.ndarray:
         core = _core(venv)
-        t_mid = np.asarray(core.t_s, dtype=np.float64) + 0.5 * float(_dt_s(core))
+        t_mid = np.asarray(core.t_s, dtype=np.float64) + 0.5 * float(core.dt_s)
         phi = np.zeros(len(self._ids))
         for k, cid in enumerate(self._ids):
             sol = self.solutions[cid]
             if sol.success:
                 phi[k] = sol.thrust_angle_at(float(t_mid[k]))
         return _thrust_angle_to_action(venv, phi)
-
-
-def _dt_s(core) -> float:
-    for attr in ("dt_s",):
-        if hasattr(core, attr):
-            return float(getattr(core, attr))
-    task = getattr(core, "task", None) or getattr(core, "_task", None)
-    if task is not None and hasattr(task, "dt_s"):
-        return float(task.dt_s)
-    raise AttributeError("cannot find the env step length dt_s on the vector env")
 
 
 class ExpertPolicy:
@@ -296,16 +263,6 @@ class PolicyResult:
         return 1e6 * self.policy_wall_s / max(self.n_decisions, 1)
 
 
-def _vector_info(info: dict, key: str, n: int) -> np.ndarray:
-    """``info[key]`` as float array with NaN where Gymnasium's ``info["_" + key]`` mask says the
-    value is undefined (e.g. no touchdown speed for a truncated episode)."""
-    val = np.asarray(info[key], dtype=np.float64).reshape(n)
-    mask = info.get("_" + key)
-    if mask is None:
-        return val
-    return np.where(np.asarray(mask, dtype=bool).reshape(n), val, np.nan)
-
-
 def rollout(env_id: str, policy: Policy, n: int, seed: int,
             env_kwargs: dict[str, Any] | None = None, trace_cases: int = 3,
             max_steps: int | None = None) -> PolicyResult:
@@ -330,76 +287,19 @@ def rollout(env_id: str, policy: Policy, n: int, seed: int,
     -------
     PolicyResult
     """
-    if n < 1:
-        raise ValueError(f"n={n} must be >= 1")
-    venv = _make_vec(env_id, n, env_kwargs)
-    try:
-        obs, _ = venv.reset(seed=seed)
-        core = _core(venv)
-        ids = np.arange(n)
-        policy.reset(venv, ids)
-        if max_steps is None:
-            tl = getattr(core, "time_limit_s", None)
-            task = getattr(core, "task", None) or getattr(core, "_task", None)
-            if tl is None and task is not None:
-                tl = task.time_limit_s
-            max_steps = int(math.ceil(float(tl) / _dt_s(core))) + 10 if tl else 100_000
-        active = np.ones(n, dtype=bool)
-        success = np.zeros(n, dtype=bool)
-        speed = np.full(n, np.nan)
-        miss = np.full(n, np.nan)
-        fuel = np.full(n, np.nan)
-        t_end = np.full(n, np.nan)
-        k_tr = min(trace_cases, n)
-        traces: dict[int, dict[str, list]] = {i: {"t_s": [], "state_nd": [], "action": []}
-                                              for i in range(k_tr)}
-        wall = 0.0
-        n_dec = 0
-        for _ in range(max_steps):
-            state_before = np.array(core.state_nd[:k_tr], copy=True)
-            t_before = np.array(core.t_s[:k_tr], dtype=np.float64, copy=True)
-            if hasattr(policy, "active"):
-                policy.active = active  # lets a costly policy skip finished landers
-            t0 = time.perf_counter()
-            action = policy.act(obs, venv)
-            wall += time.perf_counter() - t0
-            n_dec += int(active.sum())
-            action = np.asarray(action, dtype=np.float32)
-            if not np.all(np.isfinite(action)):
-                raise FloatingPointError(f"policy {policy.name!r} produced non-finite actions")
-            for i in range(k_tr):
-                if active[i]:
-                    traces[i]["t_s"].append(t_before[i])
-                    traces[i]["state_nd"].append(state_before[i])
-                    traces[i]["action"].append(action[i])
-            obs, _, term, trunc, info = venv.step(action)
-            ended = (np.asarray(term) | np.asarray(trunc)) & active
-            if ended.any():
-                e = np.flatnonzero(ended)
-                success[e] = np.asarray(info["is_success"])[e]
-                speed[e] = _vector_info(info, "touchdown_speed_m_s", n)[e]
-                if "miss_distance_m" in info:
-                    miss[e] = _vector_info(info, "miss_distance_m", n)[e]
-                fuel[e] = np.asarray(info["fuel_used_kg"], dtype=np.float64)[e]
-                if "time_s" in info:
-                    t_end[e] = np.asarray(info["time_s"], dtype=np.float64)[e]
-                for i in e[e < k_tr]:  # final state of traced cases (before autoreset)
-                    traces[i]["t_s"].append(float(info["time_s"][i]) if "time_s" in info
-                                            else np.nan)
-                    traces[i]["state_nd"].append(np.array(core.state_nd[i], copy=True))
-                active &= ~ended
-            if not active.any():
-                break
-        else:
-            raise RuntimeError(f"{policy.name}: {int(active.sum())} cases did not end within "
-                               f"{max_steps} steps")
-    finally:
-        venv.close()
-    tr_out = {i: {"t_s": np.asarray(v["t_s"], dtype=np.float64),
-                  "state_nd": np.asarray(v["state_nd"], dtype=np.float64),
-                  "action": np.asarray(v["action"], dtype=np.float64)}
-              for i, v in traces.items()}
-    return PolicyResult(policy.name, ids, success, speed, miss, fuel, t_end, n_dec, wall, tr_out)
+    def act(obs, venv, active):
+        if hasattr(policy, "active"):
+            policy.active = active  # lets a costly policy skip finished landers
+        return policy.act(obs, venv)
+
+    out = fly(env_id, act, n, seed=seed, env_kwargs=env_kwargs, record=range(trace_cases),
+              record_final=True, max_steps=max_steps,
+              on_reset=lambda venv: policy.reset(venv, np.arange(n)), name=policy.name)
+    traces = {i: {"t_s": r["t_s"], "state_nd": r["state_nd"], "action": r["action"]}
+              for i, r in out.records.items()}
+    return PolicyResult(policy.name, np.arange(n), out.is_success, out.touchdown_speed_m_s,
+                        out.miss_distance_m, out.fuel_used_kg, out.episode_time_s,
+                        out.n_decisions, out.policy_wall_s, traces)
 
 
 # ----------------------------------------------------------------------------- optimum
@@ -657,11 +557,10 @@ def evaluate_run(run_dir: str | Path, n_states: int = DEFAULT_N_STATES, seed: in
     Uses the run's env id and ``env_kwargs`` (from ``args.yml`` / ``config.yml``); writes into
     ``<run_dir>/evaluation`` unless ``out_dir`` is given.
     """
-    import yaml
+    from agents.runs import read_run
 
     run_dir = Path(run_dir)
-    args = yaml.safe_load((run_dir / "args.yml").read_text())
-    hp = yaml.safe_load((run_dir / "config.yml").read_text())
+    args, hp = read_run(run_dir)
     env_id = args["env"]
     policy = SB3Policy.from_path(run_dir, name=f"{args['algo'].upper()} ({run_dir.name})")
     report = compare(env_id, [policy], n_states=n_states, seed=seed,
@@ -713,7 +612,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="torch threads for SB3 inference (default 1, as in training)")
     args = p.parse_args(argv)
     import torch
-    import yaml
+
+    from agents.runs import read_run, run_dir_of
 
     torch.set_num_threads(max(args.torch_threads, 1))
 
@@ -721,17 +621,14 @@ def main(argv: list[str] | None = None) -> int:
     env_kwargs = None
     policies: list[Policy] = []
     for m in args.model:
-        mp = Path(m)
-        run_dir = mp if mp.is_dir() else (mp.parent.parent if mp.parent.name == "checkpoints"
-                                          else mp.parent)
-        if (run_dir / "args.yml").exists():
-            ra = yaml.safe_load((run_dir / "args.yml").read_text())
-            hp = yaml.safe_load((run_dir / "config.yml").read_text())
+        run_dir = run_dir_of(m)
+        ra, hp = read_run(run_dir)
+        if ra:
             if env_id is None:
                 env_id = ra["env"]
             if env_kwargs is None:
                 env_kwargs = hp.get("env_kwargs")
-        policies.append(SB3Policy.from_path(mp, name=None if len(args.model) == 1 else None))
+        policies.append(SB3Policy.from_path(m))
         if len(args.model) > 1:
             policies[-1].name = f"{policies[-1].name} ({run_dir.name})"
     env_id = env_id or DEFAULT_ENV_ID

@@ -68,27 +68,25 @@ def validate_features(names: Sequence[str] | None) -> list[str]:
     return out
 
 
-def feature_constants(task) -> dict[str, float]:
-    """SI constants of a soft-landing task (``LunarSoftLandingEnv``'s ``_task``) used by features.
+def feature_constants(env) -> dict:
+    """What the features need from a soft-landing env, through its public API.
 
-    Raises ``TypeError`` for a task that is not the planar soft-landing task.
+    ``env``: a ``LunarSoftLanding-v0`` env (single or native vector, or its task): its
+    ``physical_constants()`` (thrust, exhaust velocity, dry mass, surface gravity, nominal
+    propellant) and, under ``"decode"``, its ``observation_quantities`` — the env's own inverse of
+    its observation, so a change to the observation cannot silently break trained features.
+
+    Raises ``TypeError`` for an env that is not the planar soft-landing task.
     """
-    needed = ("altitude_scale_m", "speed_scale_m_s", "prop_nominal_nd", "dry_mass_nd",
-              "mass_ref_kg", "velocity_ref_m_s", "length_ref_m", "r_stop_nd", "scenario")
-    if getattr(task, "has_target", True) or not all(hasattr(task, k) for k in needed):
+    if getattr(env, "has_target", True) or not hasattr(env, "observation_quantities") \
+            or not hasattr(env, "physical_constants"):
         raise TypeError("observation features are defined for LunarSoftLanding-v0 only")
-    v = task.scenario.vehicle
-    return {
-        "altitude_scale_m": float(task.altitude_scale_m),
-        "speed_scale_m_s": float(task.speed_scale_m_s),
-        "prop_nominal_kg": float(task.prop_nominal_nd * task.mass_ref_kg),
-        "dry_mass_kg": float(task.dry_mass_nd * task.mass_ref_kg),
-        "thrust_n": float(v.thrust_n),
-        "exhaust_velocity_m_s": float(v.exhaust_velocity_m_s),
-        # μ = 1 in normalised units: g_surface = (V² / L) / r_surface²
-        "gravity_m_s2": float(task.velocity_ref_m_s ** 2 / task.length_ref_m
-                              / task.r_stop_nd ** 2),
-    }
+    try:
+        consts: dict = dict(env.physical_constants())
+    except TypeError:
+        raise TypeError("observation features are defined for LunarSoftLanding-v0 only") from None
+    consts["decode"] = env.observation_quantities
+    return consts
 
 
 def augment_observation(obs: np.ndarray, consts: dict[str, float],
@@ -101,7 +99,7 @@ def augment_observation(obs: np.ndarray, consts: dict[str, float],
         ``LunarSoftLanding-v0`` observations (altitude/h₀, v_r/(0.1 v₀), v_t/v₀, propellant
         fraction, time fraction).
     consts : dict
-        :func:`feature_constants` of the env's task.
+        :func:`feature_constants` of the env.
     names : sequence of str
         Feature names (:data:`FEATURE_WIDTHS`).
 
@@ -115,10 +113,11 @@ def augment_observation(obs: np.ndarray, consts: dict[str, float],
     if obs.ndim != 2 or obs.shape[1] != 5:
         raise ValueError(f"obs shape {obs.shape}: expected (B, 5) soft-landing observations")
     o = obs.astype(np.float64)
-    h = o[:, 0] * consts["altitude_scale_m"]
-    vr = o[:, 1] * 0.1 * consts["speed_scale_m_s"]
-    vt = o[:, 2] * consts["speed_scale_m_s"]
-    prop = np.maximum(o[:, 3], 0.0) * consts["prop_nominal_kg"]
+    q = consts["decode"](o)  # the env's own inverse of its observation
+    h = q["altitude_m"]
+    vr = q["radial_velocity_m_s"]
+    vt = q["tangential_velocity_m_s"]
+    prop = np.maximum(q["propellant_kg"], 0.0)
     m = consts["dry_mass_kg"] + prop
     speed = np.hypot(vr, vt)
     a_thrust = consts["thrust_n"] / m
@@ -189,7 +188,7 @@ class ObsFeatureWrapper(VecEnvWrapper):
         if native is None:
             raise TypeError("ObsFeatureWrapper needs a LanderSB3VecEnv of LunarSoftLanding-v0 "
                             "inside the wrapper chain")
-        self.consts = feature_constants(native._task)
+        self.consts = feature_constants(native)
         base = venv.observation_space
         lo, hi = _feature_bounds(self.names)
         space = spaces.Box(np.concatenate([base.low, lo]).astype(np.float32),

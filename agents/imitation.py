@@ -235,7 +235,7 @@ def _split_by_trajectory(ds, val_fraction: float, rng: np.random.Generator):
 
 
 def _new_run_dir(log_folder: str, mode: str, env_id: str) -> Path:
-    from agents.train import next_run_dir
+    from agents.runs import next_run_dir
 
     return next_run_dir(Path(log_folder) / "imitation", f"{mode}_{env_id}")
 
@@ -341,45 +341,19 @@ def rollout_policy(model, env_id: str, env_kwargs: dict[str, Any] | None, n_epis
     ``state_nd`` (T, 5), ``t_s`` (T,) — the states at which the policy acted — and the outcome
     ``success``, ``fuel_kg``, ``touchdown_speed_m_s``.
     """
-    import gymnasium as gym
+    from agents.rollout import fly
 
-    import lunar_env  # noqa: F401
+    def act(obs, venv, active):
+        return model.predict(obs, deterministic=True)[0]
 
-    venv = gym.make_vec(env_id, num_envs=n_episodes, vectorization_mode="vector_entry_point",
-                        **(env_kwargs or {}))
-    core = venv.unwrapped if hasattr(venv, "unwrapped") else venv
-    eps: list[dict[str, list]] = [{"obs": [], "state_nd": [], "t_s": []}
-                                  for _ in range(n_episodes)]
-    out: list[dict[str, Any]] = [{} for _ in range(n_episodes)]
-    try:
-        obs, _ = venv.reset(seed=seed)
-        active = np.ones(n_episodes, dtype=bool)
-        limit = 100_000
-        while active.any() and limit > 0:
-            limit -= 1
-            states = np.array(core.state_nd, copy=True)
-            ts = np.array(core.t_s, dtype=np.float64, copy=True)
-            for i in np.flatnonzero(active):
-                eps[i]["obs"].append(obs[i].copy())
-                eps[i]["state_nd"].append(states[i])
-                eps[i]["t_s"].append(ts[i])
-            action, _ = model.predict(obs, deterministic=True)
-            obs, _, term, trunc, info = venv.step(np.asarray(action, dtype=np.float32))
-            ended = (np.asarray(term) | np.asarray(trunc)) & active
-            for i in np.flatnonzero(ended):
-                sp = np.asarray(info["touchdown_speed_m_s"], dtype=np.float64)[i]
-                m = info.get("_touchdown_speed_m_s")
-                out[i] = {"success": bool(np.asarray(info["is_success"])[i]),
-                          "fuel_kg": float(np.asarray(info["fuel_used_kg"])[i]),
-                          "touchdown_speed_m_s": float(sp) if m is None or bool(m[i])
-                          else float("nan")}
-            active &= ~ended
-    finally:
-        venv.close()
+    res = fly(env_id, act, n_episodes, seed=seed, env_kwargs=env_kwargs,
+              record=range(n_episodes), max_steps=100_000, name="policy")
+    out: list[dict[str, Any]] = []
     for i in range(n_episodes):
-        out[i].update(obs=np.asarray(eps[i]["obs"], dtype=np.float32),
-                      state_nd=np.asarray(eps[i]["state_nd"], dtype=np.float64),
-                      t_s=np.asarray(eps[i]["t_s"], dtype=np.float64))
+        r = res.records[i]
+        out.append({"success": bool(res.is_success[i]), "fuel_kg": float(res.fuel_used_kg[i]),
+                    "touchdown_speed_m_s": float(res.touchdown_speed_m_s[i]),
+                    "obs": r["obs"], "state_nd": r["state_nd"], "t_s": r["t_s"]})
     return out
 
 
@@ -713,26 +687,15 @@ def _resolve(args) -> tuple[dict[str, Any], dict[str, Any]]:
 def _run_env_kwargs(path: str | Path, env_id: str) -> dict[str, Any]:
     """The run's ``env_kwargs`` without entries equal to the env's defaults (so that runs with
     ``{}`` and ``{dt_s: 1.0}`` share one env configuration)."""
-    import inspect
-
     import gymnasium as gym
 
     import lunar_env  # noqa: F401
+    from agents.runs import read_run
 
-    p = Path(path)
-    run_dir = p if p.is_dir() else (p.parent.parent if p.parent.name == "checkpoints"
-                                    else p.parent)
-    cfg = run_dir / "config.yml"
-    kw = {}
-    if cfg.exists():
-        kw = dict((yaml.safe_load(cfg.read_text()) or {}).get("env_kwargs") or {})
+    kw = dict(read_run(path)[1].get("env_kwargs") or {})
     env = gym.make(env_id, **kw)
-    task_cls = type(getattr(env.unwrapped, "_task", None))
+    defaults = env.unwrapped.task_defaults()
     env.close()
-    try:
-        defaults = {k: v.default for k, v in inspect.signature(task_cls).parameters.items()}
-    except (TypeError, ValueError):
-        defaults = {}
     return {k: v for k, v in kw.items() if not (k in defaults and defaults[k] == v)}
 
 

@@ -41,10 +41,10 @@ POTENTIALS = ("surface_speed",)
 def surface_speed_m_s(obs: np.ndarray, consts: dict[str, float], surface_radius_m: float
                       ) -> np.ndarray:
     """Engine-off surface speed (m/s), shape (B,), from soft-landing observations (B, ≥5)."""
-    o = np.asarray(obs, dtype=np.float64)
-    h = np.maximum(o[:, 0] * consts["altitude_scale_m"], 0.0)
-    vr = o[:, 1] * 0.1 * consts["speed_scale_m_s"]
-    vt = o[:, 2] * consts["speed_scale_m_s"]
+    q = consts["decode"](np.asarray(obs, dtype=np.float64)[:, :5])
+    h = np.maximum(q["altitude_m"], 0.0)
+    vr = q["radial_velocity_m_s"]
+    vt = q["tangential_velocity_m_s"]
     g_r2 = consts["gravity_m_s2"] * surface_radius_m ** 2  # μ (m³/s²)
     drop = 2.0 * g_r2 * (1.0 / surface_radius_m - 1.0 / (surface_radius_m + h))
     return np.sqrt(vr ** 2 + vt ** 2 + drop)
@@ -75,7 +75,7 @@ class PotentialShaping(VecEnvWrapper):
         native = getattr(node, "native", None)
         if native is None:
             raise TypeError("PotentialShaping needs a LanderSB3VecEnv of LunarSoftLanding-v0")
-        self.consts = feature_constants(native._task)
+        self.consts = feature_constants(native)
         self.surface_radius_m = float(native.scenario.surface_radius_m)
         self.gamma = float(gamma)
         self.potential = potential

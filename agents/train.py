@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import shlex
 import signal
 import sys
@@ -62,20 +61,24 @@ from agents.hyperparams import (
     parse_override,
     resolve_algo_kwargs,
 )
+from agents.runs import (
+    algo_class,
+    load_trained,
+    next_run_dir,
+    read_run,
+    resumable_checkpoint,
+    save_model_atomic,
+    save_vecnormalize_atomic,
+    write_text_atomic,
+)
+from agents.runs import latest_checkpoint as latest_checkpoint  # re-export (0.1 API)
 
 __all__ = ["main", "build_parser", "train", "make_training_env", "latest_checkpoint",
-           "load_trained", "DEFAULT_ENV_ID"]
+           "load_trained", "next_run_dir", "DEFAULT_ENV_ID"]
 
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
-_CKPT_RE = re.compile(r"^rl_model_(\d+)_steps\.zip$")
 #: info keys averaged over finished episodes and written to TensorBoard under ``episode/``
 _EPISODE_INFO_KEYS = ("fuel_used_kg", "touchdown_speed_m_s", "miss_distance_m")
-
-
-def _algo_class(algo: str):
-    from stable_baselines3 import PPO, SAC, TD3
-
-    return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -247,6 +250,7 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
                              save_vecnormalize=True, verbose=0)
             self.save_every_steps = max(int(save_freq), 1)
             self._last_saved = None
+            self.on_save = None  # called after every checkpoint (timing bookkeeping)
 
         def _on_training_start(self) -> None:
             self._last_saved = self.model.num_timesteps
@@ -275,16 +279,23 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
             self.num_timesteps = self.model.num_timesteps  # the parent names files after this
             path = Path(self._checkpoint_path(extension="zip"))
             path.parent.mkdir(parents=True, exist_ok=True)
-            self.model.save(path)
-            if getattr(self.model, "replay_buffer", None) is not None:
-                self.model.save_replay_buffer(self._checkpoint_path("replay_buffer_", "pkl"))
+            # statistics and replay buffer first, the model last (each atomically): a model
+            # file therefore implies a complete checkpoint
             vn = self.model.get_vec_normalize_env()
             if vn is not None:
-                vn.save(self._checkpoint_path("vecnormalize_", "pkl"))
+                save_vecnormalize_atomic(vn, self._checkpoint_path("vecnormalize_", "pkl"))
+            if getattr(self.model, "replay_buffer", None) is not None:
+                rb = Path(self._checkpoint_path("replay_buffer_", "pkl"))
+                tmp = rb.with_name(f".{rb.name}.tmp.pkl")
+                self.model.save_replay_buffer(tmp)
+                os.replace(tmp, rb)
+            save_model_atomic(self.model, path)
             cfg = path.parent / "config.yml"
             if not cfg.exists():
-                cfg.write_text(yaml.safe_dump(config, sort_keys=True))
+                write_text_atomic(cfg, yaml.safe_dump(config, sort_keys=True))
             self._last_saved = self.model.num_timesteps
+            if self.on_save is not None:
+                self.on_save()
             return path
 
     class EpisodeInfoCallback(BaseCallback):
@@ -319,98 +330,6 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
     return RolloutCheckpointCallback(), EpisodeInfoCallback()
 
 
-# ----------------------------------------------------------------------------- run directory
-
-
-def latest_checkpoint(run_dir: str | Path) -> tuple[Path, int]:
-    """Newest ``checkpoints/rl_model_<steps>_steps.zip`` of a run and its step count.
-
-    Raises
-    ------
-    FileNotFoundError
-        If the run has no checkpoint.
-    """
-    ckdir = Path(run_dir) / "checkpoints"
-    found = []
-    if ckdir.is_dir():
-        for f in ckdir.iterdir():
-            m = _CKPT_RE.match(f.name)
-            if m:
-                found.append((int(m.group(1)), f))
-    if not found:
-        raise FileNotFoundError(f"no checkpoint rl_model_<steps>_steps.zip in {ckdir}; "
-                                "the run cannot be resumed (start it again without --resume)")
-    steps, path = max(found)
-    return path, steps
-
-
-def next_run_dir(parent: str | Path, prefix: str) -> Path:
-    """``parent/<prefix>_<k>`` with k one past the highest existing index (1 if none)."""
-    parent = Path(parent)
-    parent.mkdir(parents=True, exist_ok=True)
-    k = 1
-    pattern = re.compile(rf"^{re.escape(prefix)}_(\d+)$")
-    for d in parent.iterdir():
-        m = pattern.match(d.name)
-        if m:
-            k = max(k, int(m.group(1)) + 1)
-    return parent / f"{prefix}_{k}"
-
-
-def _new_run_dir(log_folder: str, algo: str, env_id: str) -> Path:
-    return next_run_dir(Path(log_folder) / algo, env_id)
-
-
-def load_trained(run_dir_or_model: str | Path, env=None, device: str = "cpu"):
-    """Load a trained model and its ``VecNormalize`` statistics.
-
-    Parameters
-    ----------
-    run_dir_or_model : str or Path
-        A run directory (uses ``model.zip``, else the newest checkpoint) or a ``.zip`` path
-        (statistics from ``vecnormalize.pkl`` beside it or the matching checkpoint file).
-    env : VecEnv, optional
-        Attached to the model (needed only to continue training).
-
-    Returns
-    -------
-    model : BaseAlgorithm
-    vecnormalize_path : Path or None
-    algo : str
-    """
-    p = Path(run_dir_or_model)
-    if p.is_dir():
-        if (p / "model.zip").exists():
-            model_path, vn_path = p / "model.zip", p / "vecnormalize.pkl"
-        else:
-            model_path, steps = latest_checkpoint(p)
-            vn_path = model_path.parent / f"rl_model_vecnormalize_{steps}_steps.pkl"
-        args_file = p / "args.yml"
-    else:
-        model_path = p
-        m = _CKPT_RE.match(p.name)
-        if m:
-            vn_path = p.parent / f"rl_model_vecnormalize_{m.group(1)}_steps.pkl"
-            args_file = p.parent.parent / "args.yml"
-        else:
-            vn_path = p.parent / "vecnormalize.pkl"
-            args_file = p.parent / "args.yml"
-    if not model_path.exists():
-        raise FileNotFoundError(f"model file {model_path} does not exist")
-    algo = None
-    if args_file.exists():
-        algo = yaml.safe_load(args_file.read_text()).get("algo")
-    if algo is None:
-        import zipfile
-
-        with zipfile.ZipFile(model_path) as zf:
-            data = zf.read("data").decode()
-        algo = "sac" if '"log_ent_coef"' in data else ("td3" if "target_policy_noise" in data
-                                                        else "ppo")
-    model = _algo_class(algo).load(model_path, env=env, device=device)
-    return model, (vn_path if vn_path.exists() else None), algo
-
-
 # ----------------------------------------------------------------------------- training
 
 
@@ -431,11 +350,7 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
     if args.init_from and "obs_features" not in overrides:
         # The initial policy fixes the network's inputs: a run fine-tuned from it observes what
         # it observed (e.g. a behaviour-cloning policy trained on the env's raw observation).
-        ip = Path(args.init_from)
-        init_dir = ip if ip.is_dir() else (ip.parent.parent if ip.parent.name == "checkpoints"
-                                           else ip.parent)
-        init_cfg = init_dir / "config.yml"
-        init_hp = (yaml.safe_load(init_cfg.read_text()) if init_cfg.exists() else None) or {}
+        init_hp = read_run(args.init_from)[1]
         init_feats = list(init_hp.get("obs_features") or [])
         if list(hp.get("obs_features") or []) != init_feats:
             print(f"--init-from {args.init_from}: obs_features set to {init_feats} (those of the "
@@ -483,12 +398,13 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     tb_dir = None if run.get("no_tensorboard") else str(run_dir / "tb")
 
     if resume:
-        ckpt, steps = latest_checkpoint(run_dir)
-        vn_path = ckpt.parent / f"rl_model_vecnormalize_{steps}_steps.pkl"
-        if vn_path.exists():
+        # the newest *complete* checkpoint; a normalised run never resumes without statistics
+        ckpt, steps, vn_path = resumable_checkpoint(
+            run_dir, needs_vecnormalize=bool(hp.get("normalize")))
+        if vn_path is not None:
             venv = VecNormalize.load(str(vn_path), venv)
             venv.training = True
-        model = _algo_class(algo).load(ckpt, env=venv, device=run.get("device", "cpu"),
+        model = algo_class(algo).load(ckpt, env=venv, device=run.get("device", "cpu"),
                                        tensorboard_log=tb_dir)
         rb = ckpt.parent / f"rl_model_replay_buffer_{steps}_steps.pkl"
         if rb.exists() and hasattr(model, "load_replay_buffer"):
@@ -517,7 +433,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         if norm_kw is not None:
             venv = VecNormalize(venv, **norm_kw)
         kwargs = resolve_algo_kwargs(hp, algo, n_actions=int(np.prod(venv.action_space.shape)))
-        model = _algo_class(algo)(hp.get("policy", "MlpPolicy"), venv, seed=seed,
+        model = algo_class(algo)(hp.get("policy", "MlpPolicy"), venv, seed=seed,
                                   device=run.get("device", "cpu"), tensorboard_log=tb_dir,
                                   verbose=int(run.get("verbose", 1)), **kwargs)
         if init is not None:
@@ -548,6 +464,21 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     old_handler = signal.signal(signal.SIGTERM, _on_sigterm)
     t0 = time.perf_counter()
     steps0 = model.num_timesteps
+    tfile = run_dir / "timing.yml"
+    previous = (yaml.safe_load(tfile.read_text()) or []) if tfile.exists() else []
+
+    def record_timing() -> list:
+        """This session's timing, rewritten atomically at every checkpoint and at the end, so a
+        run killed part-way still accounts for the steps it saved."""
+        wall_s = time.perf_counter() - t0
+        done_steps = model.num_timesteps - steps0
+        session = {"train_wall_s_this_session": wall_s, "steps_this_session": int(done_steps),
+                   "steps_per_s": done_steps / wall_s if wall_s > 0 else float("nan"),
+                   "num_timesteps": int(model.num_timesteps)}
+        write_text_atomic(tfile, yaml.safe_dump(previous + [session]))
+        return previous + [session]
+
+    ckpt_cb.on_save = record_timing
     try:
         if remaining > 0:
             model.learn(total_timesteps=remaining,
@@ -565,21 +496,15 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     wall = time.perf_counter() - t0
     if ckpt_cb.model is not None and ckpt_cb._last_saved != model.num_timesteps:
         ckpt_cb.save_now()  # the newest checkpoint is the final state: --resume can extend it
-    model.save(run_dir / "model.zip")
     vn = model.get_vec_normalize_env()
     if vn is not None:
-        vn.save(str(run_dir / "vecnormalize.pkl"))
-    done = model.num_timesteps - steps0
-    timing = {"train_wall_s_this_session": wall, "steps_this_session": int(done),
-              "steps_per_s": done / wall if wall > 0 else float("nan"),
-              "num_timesteps": int(model.num_timesteps)}
-    tfile = run_dir / "timing.yml"
-    sessions = yaml.safe_load(tfile.read_text()) if tfile.exists() else []
-    sessions.append(timing)
-    tfile.write_text(yaml.safe_dump(sessions))
+        save_vecnormalize_atomic(vn, run_dir / "vecnormalize.pkl")
+    save_model_atomic(model, run_dir / "model.zip")
+    sessions = record_timing()
     total_wall = sum(s["train_wall_s_this_session"] for s in sessions)
-    print(f"Trained {model.num_timesteps} steps; this session {done} steps in {wall:.1f} s "
-          f"({timing['steps_per_s']:.0f} steps/s); total training wall time {total_wall:.1f} s. "
+    print(f"Trained {model.num_timesteps} steps; this session {sessions[-1]['steps_this_session']}"
+          f" steps in {wall:.1f} s ({sessions[-1]['steps_per_s']:.0f} steps/s); total training "
+          f"wall time {total_wall:.1f} s. "
           f"Model: {run_dir / 'model.zip'}")
     venv.close()
     return model, run_dir
@@ -594,28 +519,38 @@ def main(argv: list[str] | None = None) -> int:
         run_dir = Path(args.resume)
         if not (run_dir / "args.yml").exists() or not (run_dir / "config.yml").exists():
             parser.error(f"--resume {run_dir}: not a run directory (args.yml/config.yml missing)")
-        run = yaml.safe_load((run_dir / "args.yml").read_text())
-        hp = yaml.safe_load((run_dir / "config.yml").read_text())
+        run, hp = read_run(run_dir)
+        try:  # validate before anything is rewritten (a failed resume changes nothing)
+            resumable_checkpoint(run_dir, needs_vecnormalize=bool(hp.get("normalize")),
+                                 log=lambda msg: None)
+        except FileNotFoundError as exc:
+            parser.error(f"--resume {run_dir}: {exc}")
         if args.n_timesteps is not None:  # allow extending a finished run
+            if args.n_timesteps < 1:
+                parser.error(f"-n {args.n_timesteps}: must be >= 1")
             hp["n_timesteps"] = int(args.n_timesteps)
-            (run_dir / "config.yml").write_text(yaml.safe_dump(hp, sort_keys=True))
+            write_text_atomic(run_dir / "config.yml", yaml.safe_dump(hp, sort_keys=True))
         for key in ("no_progress", "no_eval", "eval_states", "eval_expert_states"):
             if f"--{key.replace('_', '-')}" in argv_list:
                 run[key] = getattr(args, key)
-        with (run_dir / "command.txt").open("a") as fh:
-            fh.write(shlex.join([sys.executable, *sys.argv]) + "\n")
+        command = (run_dir / "command.txt").read_text() if (run_dir / "command.txt").exists() \
+            else ""
+        write_text_atomic(run_dir / "command.txt",
+                          command + shlex.join([sys.executable, *sys.argv]) + "\n")
         resume = True
     else:
         hp, run = _resolve_args(args)
-        run_dir = Path(args.run_dir) if args.run_dir else _new_run_dir(args.log_folder,
-                                                                       args.algo, args.env)
-        if run_dir.exists() and any(run_dir.iterdir()):
-            parser.error(f"run directory {run_dir} exists and is not empty; use --resume")
-        run_dir.mkdir(parents=True, exist_ok=True)
+        if args.run_dir:
+            run_dir = Path(args.run_dir)
+            if run_dir.exists() and any(run_dir.iterdir()):
+                parser.error(f"run directory {run_dir} exists and is not empty; use --resume")
+            run_dir.mkdir(parents=True, exist_ok=True)
+        else:  # created atomically: concurrent runs never share a directory
+            run_dir = next_run_dir(Path(args.log_folder) / args.algo, args.env)
         run["run_dir"] = str(run_dir)
-        (run_dir / "config.yml").write_text(yaml.safe_dump(hp, sort_keys=True))
-        (run_dir / "args.yml").write_text(yaml.safe_dump(run, sort_keys=True))
-        (run_dir / "command.txt").write_text(shlex.join([sys.executable, *sys.argv]) + "\n")
+        write_text_atomic(run_dir / "config.yml", yaml.safe_dump(hp, sort_keys=True))
+        write_text_atomic(run_dir / "args.yml", yaml.safe_dump(run, sort_keys=True))
+        write_text_atomic(run_dir / "command.txt", shlex.join([sys.executable, *sys.argv]) + "\n")
         resume = False
     print(f"Run directory: {run_dir}  (algo={run['algo']}, env={run['env']}, "
           f"config={run['config']}, seed={run['seed']})")

@@ -63,36 +63,30 @@ class LanderSB3VecEnv(VecEnv):
 
     def step_wait(self):
         nat = self.native
-        task = nat._task
         if self._actions is None:
             raise RuntimeError("step_wait() called without step_async()")
-        controls = task.controls_from_actions(self._actions)
+        out = nat.step_landers(self._actions)
         self._actions = None
-        b = nat._batch
-        out = b.step(controls)
         done = out["terminated"] | out["truncated"]
-        obs = task.observation(b.y, b.t_nd * task.time_ref_s)
-        fuel = (b.m_start_nd - b.y[:, -1]) * task.mass_ref_kg
-        alt = task.altitude_m(b.y)
-        t_s = b.t_nd * task.time_ref_s
+        obs = nat.observations()
         infos: list[dict[str, Any]] = []
         for i in range(self.num_envs):
-            info: dict[str, Any] = {"fuel_used_kg": float(fuel[i]),
+            info: dict[str, Any] = {"fuel_used_kg": float(out["fuel_used_kg"][i]),
                                     "is_success": bool(out["is_success"][i]),
-                                    "altitude_m": float(alt[i]), "time_s": float(t_s[i])}
+                                    "altitude_m": float(out["altitude_m"][i]),
+                                    "time_s": float(out["time_s"][i])}
             if out["terminated"][i]:
                 info["touchdown_speed_m_s"] = float(out["touchdown_speed_m_s"][i])
-            if task.has_target and done[i]:
+            if nat.has_target and done[i]:
                 info["miss_distance_m"] = float(out["miss_distance_m"][i])
             if done[i]:
                 info["terminal_observation"] = obs[i].copy()
                 info["TimeLimit.truncated"] = bool(out["truncated"][i] and
                                                    not out["terminated"][i])
             infos.append(info)
-        for i in np.flatnonzero(done):
-            nat._reset_one(int(i), None)
         if done.any():
-            obs = task.observation(b.y, b.t_nd * task.time_ref_s)
+            nat.reset_landers(np.flatnonzero(done))
+            obs = nat.observations()
         return obs, out["reward"].astype(np.float32), done, infos
 
     def close(self) -> None:

@@ -20,15 +20,16 @@ ENV_ID = "LunarSoftLanding-v0"
 ALL = list(FEATURE_WIDTHS)
 
 
-def _task():
-    return make_sb3_vec_env(ENV_ID, 1, seed=0).native._task
+def _env():
+    return make_sb3_vec_env(ENV_ID, 1, seed=0).native
 
 
 def test_features_finite_on_the_whole_observation_box():
-    task = _task()
-    consts = feature_constants(task)
+    env = _env()
+    consts = feature_constants(env)
     rng = np.random.default_rng(0)
-    lo, hi = task.obs_low, task.obs_high
+    lo = env.single_observation_space.low.astype(np.float64)
+    hi = env.single_observation_space.high.astype(np.float64)
     obs = rng.uniform(lo, hi, size=(4000, 5))
     obs[:8] = lo  # corners: zero altitude, zero propellant, extreme speeds
     obs[8:16] = hi
@@ -40,18 +41,40 @@ def test_features_finite_on_the_whole_observation_box():
 
 def test_features_physics():
     """The stopping ratio is v²/(2 a_net h) and the fine velocities resolve 1 m/s."""
-    task = _task()
-    c = feature_constants(task)
+    env = _env()
+    c = feature_constants(env)
     assert c["gravity_m_s2"] == pytest.approx(1.62, abs=0.01)  # the Moon's surface gravity
     h, vr, vt, prop = 1000.0, -30.0, 40.0, 100.0
-    obs = np.array([[h / c["altitude_scale_m"], vr / (0.1 * c["speed_scale_m_s"]),
-                     vt / c["speed_scale_m_s"], prop / c["prop_nominal_kg"], 0.5]])
+    sc = env.scenario
+    y = sc.si_to_nd(np.array([sc.surface_radius_m + h, vr, 0.0, vt, c["dry_mass_kg"] + prop]))
+    obs = env.observation_from_state(y[None], 0.5 * env.time_limit_s)
     f = augment_observation(obs, c, ["log_altitude", "fine_velocity", "stopping_ratio"])[0]
     a_net = c["thrust_n"] / (c["dry_mass_kg"] + prop) - c["gravity_m_s2"]
     assert f[5] == pytest.approx(np.log10(1 + h) / 4.2, rel=1e-5)
     assert f[6] == pytest.approx(-np.log1p(30.0) / 7, rel=1e-5)
     assert f[7] == pytest.approx(np.log1p(40.0) / 7, rel=1e-5)
     assert f[8] == pytest.approx(np.log1p(50.0 ** 2 / (2 * a_net * h)), rel=1e-4)
+
+
+def test_features_read_the_env_through_its_own_decoding():
+    """The features decode observations with the env's inverse of its observation map, so they
+    cannot drift from it: decode(observation(state)) gives back the state's SI quantities."""
+    env = _env()
+    sc = env.scenario
+    rng = np.random.default_rng(3)
+    n = 200
+    si = np.stack([sc.surface_radius_m + rng.uniform(0, 14e3, n), rng.uniform(-150, 50, n),
+                   rng.uniform(-0.1, 0.1, n), rng.uniform(-100, 1700, n),
+                   rng.uniform(310, 600, n)], axis=1)
+    t = rng.uniform(0, env.time_limit_s, n)
+    q = env.observation_quantities(env.observation_from_state(sc.si_to_nd(si), t))
+    np.testing.assert_allclose(q["altitude_m"], si[:, 0] - sc.surface_radius_m, rtol=1e-5,
+                               atol=0.05)
+    np.testing.assert_allclose(q["radial_velocity_m_s"], si[:, 1], rtol=1e-5, atol=1e-3)
+    np.testing.assert_allclose(q["tangential_velocity_m_s"], si[:, 3], rtol=1e-5, atol=1e-2)
+    np.testing.assert_allclose(q["propellant_kg"], si[:, 4] - feature_constants(env)[
+        "dry_mass_kg"], rtol=1e-5, atol=1e-3)
+    np.testing.assert_allclose(q["time_s"], t, rtol=1e-5, atol=1e-3)
 
 
 def test_validate_features_rejects_unknown_names():
@@ -98,7 +121,8 @@ def test_shaping_telescopes_to_minus_initial_potential():
     assert ended.all()
     np.testing.assert_allclose(ret_sh, ret_raw - phi0, rtol=1e-4, atol=1e-3)
     # the potential is the engine-off surface speed: never below the current speed
-    speed = np.hypot(o_raw[:, 1] * 0.1, o_raw[:, 2]) * sh.consts["speed_scale_m_s"]
+    q = sh.consts["decode"](o_raw)
+    speed = np.hypot(q["radial_velocity_m_s"], q["tangential_velocity_m_s"])
     assert (surface_speed_m_s(o_raw, sh.consts, sh.surface_radius_m) >= speed).all()
 
 

@@ -65,6 +65,56 @@ class LanderEnv(gym.Env):
         self._renderer = None
 
     # -- public state -----------------------------------------------------------------------------
+    # ---- public description of the task (what policies and wrappers may rely on) -----------
+    @classmethod
+    def task_defaults(cls) -> dict:
+        """Default values of the env's keyword arguments (scenario, dt_s, ...)."""
+        import inspect
+
+        return {k: v.default for k, v in inspect.signature(cls._task_cls).parameters.items()
+                if v.default is not inspect.Parameter.empty}
+
+    @property
+    def dt_s(self) -> float:
+        """Decision interval: each action is held for this long (s)."""
+        return self._task.dt_s
+
+    @property
+    def time_limit_s(self) -> float:
+        """Episode time limit (s) (truncation)."""
+        return self._task.time_limit_s
+
+    @property
+    def has_target(self) -> bool:
+        """True for a pinpoint task (miss distance reported)."""
+        return bool(self._task.has_target)
+
+    def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
+        """SI quantities encoded in observations (the inverse of the observation map).
+
+        Raises
+        ------
+        TypeError
+            If this env's observation has no SI decoding.
+        """
+        fn = getattr(self._task, "observation_quantities", None)
+        if fn is None:
+            raise TypeError(f"{type(self).__name__} observations have no SI decoding")
+        return fn(obs)
+
+    def physical_constants(self) -> dict[str, float]:
+        """SI constants of the lander and body (see the task's ``physical_constants``).
+
+        Raises
+        ------
+        TypeError
+            If this env does not provide them.
+        """
+        fn = getattr(self._task, "physical_constants", None)
+        if fn is None:
+            raise TypeError(f"{type(self).__name__} provides no physical constants")
+        return fn()
+
     @property
     def state_nd(self) -> np.ndarray:
         """Current normalised state of the lander, shape (n_state,) (a copy)."""
@@ -230,6 +280,56 @@ class LanderVectorEnv(VectorEnv):
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._act_shape = (self.num_envs, *self.single_action_space.shape)
 
+    # ---- public description of the task (what policies and wrappers may rely on) -----------
+    @classmethod
+    def task_defaults(cls) -> dict:
+        """Default values of the env's keyword arguments (scenario, dt_s, ...)."""
+        import inspect
+
+        return {k: v.default for k, v in inspect.signature(cls._task_cls).parameters.items()
+                if v.default is not inspect.Parameter.empty}
+
+    @property
+    def dt_s(self) -> float:
+        """Decision interval: each action is held for this long (s)."""
+        return self._task.dt_s
+
+    @property
+    def time_limit_s(self) -> float:
+        """Episode time limit (s) (truncation)."""
+        return self._task.time_limit_s
+
+    @property
+    def has_target(self) -> bool:
+        """True for a pinpoint task (miss distance reported)."""
+        return bool(self._task.has_target)
+
+    def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
+        """SI quantities encoded in observations (the inverse of the observation map).
+
+        Raises
+        ------
+        TypeError
+            If this env's observation has no SI decoding.
+        """
+        fn = getattr(self._task, "observation_quantities", None)
+        if fn is None:
+            raise TypeError(f"{type(self).__name__} observations have no SI decoding")
+        return fn(obs)
+
+    def physical_constants(self) -> dict[str, float]:
+        """SI constants of the lander and body (see the task's ``physical_constants``).
+
+        Raises
+        ------
+        TypeError
+            If this env does not provide them.
+        """
+        fn = getattr(self._task, "physical_constants", None)
+        if fn is None:
+            raise TypeError(f"{type(self).__name__} provides no physical constants")
+        return fn()
+
     @property
     def state_nd(self) -> np.ndarray:
         """Normalised states, shape (N, n_state) (a copy)."""
@@ -245,6 +345,38 @@ class LanderVectorEnv(VectorEnv):
         y = np.atleast_2d(np.asarray(state_nd, dtype=np.float64))
         t = np.broadcast_to(np.asarray(t_s, dtype=np.float64), (len(y),))
         return self._task.observation(y, t)
+
+    def set_states(self, idx, state_nd: np.ndarray, t_s) -> None:
+        """Put landers ``idx`` at normalised states ``state_nd`` (len(idx), n_state) and episode
+        clocks ``t_s`` (s); their fuel count restarts there (e.g. a start-state curriculum)."""
+        idx = np.atleast_1d(np.asarray(idx, dtype=np.int64))
+        self._batch.set_state(idx, np.asarray(state_nd, dtype=np.float64))
+        self._batch.t_nd[idx] = np.asarray(t_s, dtype=np.float64) / self._task.time_ref_s
+
+    def reset_landers(self, idx) -> None:
+        """Start new episodes for landers ``idx`` from their own generators (same-step reset,
+        as SB3 expects; Gymnasium's autoreset does it on the next step instead)."""
+        for i in np.atleast_1d(np.asarray(idx, dtype=np.int64)):
+            self._reset_one(int(i), None)
+        self._autoreset[np.atleast_1d(np.asarray(idx, dtype=np.int64))] = False
+
+    def observations(self) -> np.ndarray:
+        """Current observations of all landers, shape (N, n_obs) float32."""
+        b = self._batch
+        return self._task.observation(b.y, b.t_nd * self._task.time_ref_s)
+
+    def step_landers(self, actions) -> dict[str, np.ndarray]:
+        """Advance every lander by one decision *without* autoreset (for adapters that reset in
+        the same step). Returns per-lander arrays: ``reward``, ``terminated``, ``truncated``,
+        ``is_success``, ``touchdown_speed_m_s`` and ``miss_distance_m`` (NaN where undefined),
+        ``fuel_used_kg``, ``altitude_m``, ``time_s``."""
+        a = validate_actions(actions, self._act_shape)
+        out = dict(self._batch.step(self._task.controls_from_actions(a)))
+        b, task = self._batch, self._task
+        out["fuel_used_kg"] = (b.m_start_nd - b.y[:, -1]) * task.mass_ref_kg
+        out["altitude_m"] = task.altitude_m(b.y)
+        out["time_s"] = b.t_nd * task.time_ref_s
+        return out
 
     def _reset_one(self, i: int, options: dict | None) -> None:
         opt = options

@@ -117,6 +117,32 @@ class _PlanarTask:
         np.clip(obs, self.obs_low, self.obs_high, out=obs)
         return obs.astype(np.float32)
 
+    def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
+        """SI quantities encoded in observations (B, 5): the inverse of :meth:`observation`
+        (exact inside the observation bounds). Keys: ``altitude_m``,
+        ``radial_velocity_m_s``, ``tangential_velocity_m_s``, ``propellant_kg``, ``time_s``."""
+        o = np.asarray(obs, dtype=np.float64).reshape(-1, 5)
+        return {"altitude_m": o[:, 0] * self.altitude_scale_m,
+                "radial_velocity_m_s": o[:, 1] * 0.1 * self.speed_scale_m_s,
+                "tangential_velocity_m_s": o[:, 2] * self.speed_scale_m_s,
+                "propellant_kg": o[:, 3] * self.prop_nominal_nd * self.mass_ref_kg,
+                "time_s": o[:, 4] * self.time_limit_s}
+
+    def physical_constants(self) -> dict[str, float]:
+        """SI constants of the lander and the body that policies may use (derived features):
+        ``thrust_n``, ``exhaust_velocity_m_s``, ``dry_mass_kg``, ``gravity_m_s2`` (at the
+        surface), ``mass_ref_kg``, ``prop_nominal_kg`` (the propellant a full observation
+        fraction means)."""
+        v = self.scenario.vehicle
+        return {"thrust_n": float(v.thrust_n), "exhaust_velocity_m_s": float(
+                    v.exhaust_velocity_m_s),
+                "dry_mass_kg": float(self.dry_mass_nd * self.mass_ref_kg),
+                # μ = 1 in normalised units: g_surface = (V² / L) / r_surface²
+                "gravity_m_s2": float(self.velocity_ref_m_s ** 2 / self.length_ref_m
+                                      / self.r_stop_nd ** 2),
+                "mass_ref_kg": float(self.mass_ref_kg),
+                "prop_nominal_kg": float(self.prop_nominal_nd * self.mass_ref_kg)}
+
     def speed_m_s(self, y: np.ndarray) -> np.ndarray:
         """Speed relative to the surface (m/s), shape (B,)."""
         return np.sqrt(y[:, 1] ** 2 + (y[:, 0] * y[:, 3]) ** 2) * self.velocity_ref_m_s

@@ -1,0 +1,164 @@
+"""The one vector-env rollout loop of agents/ (evaluation, imitation, dataset replays).
+
+:func:`fly` steps a natively batched lander vector env (``gym.make_vec(...,
+vectorization_mode="vector_entry_point")``) with a batched action function until every case has
+ended once, and returns the per-case outcome (:class:`Rollout`) read from the env's ``info``
+(success, touchdown speed, miss distance, fuel, time), with per-case histories of the recorded
+cases. Case ``i`` is sub-env ``i``: reset with ``seed + i`` (Gymnasium's vector convention), or
+pinned by ``reset_options`` (e.g. ``{"state_si": rows}``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Rollout", "fly", "make_vec", "vector_info"]
+
+
+def make_vec(env_id: str, n: int, env_kwargs: dict[str, Any] | None = None):
+    """The native vector env of ``env_id`` with ``n`` landers."""
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401  (registers the env ids)
+
+    return gym.make_vec(env_id, num_envs=int(n), vectorization_mode="vector_entry_point",
+                        **(env_kwargs or {}))
+
+
+def vector_info(info: dict, key: str, n: int) -> np.ndarray:
+    """``info[key]`` as float array with NaN where Gymnasium's ``info["_" + key]`` mask says the
+    value is undefined (e.g. no touchdown speed for a truncated episode)."""
+    val = np.asarray(info[key], dtype=np.float64).reshape(n)
+    mask = info.get("_" + key)
+    if mask is None:
+        return val
+    return np.where(np.asarray(mask, dtype=bool).reshape(n), val, np.nan)
+
+
+@dataclass
+class Rollout:
+    """Per-case outcome of :func:`fly` (arrays of length n_cases).
+
+    ``records[i]`` (for the recorded cases) holds ``obs`` (T, n_obs), ``state_nd`` (T, n_state),
+    ``t_s`` (T,) — the states at which an action was taken — and ``action`` (T, n_act); with
+    ``record_final`` also the final state (``state_nd`` and ``t_s`` one longer).
+    """
+
+    is_success: np.ndarray
+    touchdown_speed_m_s: np.ndarray
+    miss_distance_m: np.ndarray
+    fuel_used_kg: np.ndarray
+    episode_time_s: np.ndarray
+    n_decisions: int
+    policy_wall_s: float
+    records: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
+
+
+def fly(env_id: str, act: Callable[[np.ndarray, Any, np.ndarray], np.ndarray], n: int, *,
+        seed: int | None = None, env_kwargs: dict[str, Any] | None = None,
+        reset_options: dict[str, Any] | None = None, record: Iterable[int] = (),
+        record_final: bool = False, max_steps: int | None = None,
+        on_reset: Callable[[Any], None] | None = None, name: str = "policy") -> Rollout:
+    """Fly ``n`` cases until each has ended once.
+
+    Parameters
+    ----------
+    env_id : str
+    act : callable
+        ``act(obs (n, n_obs), venv, active (n,) bool) -> actions (n, n_act)``: one batched
+        decision for every lander (actions of finished landers are ignored).
+    n : int
+    seed : int, optional
+        Case i is sub-env i seeded ``seed + i``.
+    env_kwargs : dict, optional
+    reset_options : dict, optional
+        Passed to ``reset`` (``state_si`` / ``state_nd`` rows pin each case's start).
+    record : iterable of int
+        Cases whose observation, state, time and action histories are kept.
+    record_final : bool
+        Also record each recorded case's final state (before the autoreset).
+    max_steps : int, optional
+        Safety bound on vector steps (default: the env's time limit / dt + 10).
+    on_reset : callable, optional
+        ``on_reset(venv)`` after the reset, before the first decision.
+    name : str
+        Used in error messages.
+
+    Raises
+    ------
+    FloatingPointError
+        ``act`` returned non-finite actions.
+    RuntimeError
+        Cases still flying after ``max_steps``.
+    """
+    if int(n) < 1:
+        raise ValueError(f"n = {n!r} must be >= 1")
+    n = int(n)
+    rec = sorted({int(i) for i in record if 0 <= int(i) < n})
+    venv = make_vec(env_id, n, env_kwargs)
+    try:
+        obs, _ = venv.reset(seed=seed, options=reset_options)
+        core = venv.unwrapped
+        if on_reset is not None:
+            on_reset(venv)
+        if max_steps is None:
+            max_steps = int(math.ceil(core.time_limit_s / core.dt_s)) + 10
+        active = np.ones(n, dtype=bool)
+        success = np.zeros(n, dtype=bool)
+        speed = np.full(n, np.nan)
+        miss = np.full(n, np.nan)
+        fuel = np.full(n, np.nan)
+        t_end = np.full(n, np.nan)
+        hist = {i: {"obs": [], "state_nd": [], "t_s": [], "action": []} for i in rec}
+        wall = 0.0
+        n_dec = 0
+        for _ in range(max_steps):
+            if rec:
+                states, times = core.state_nd, core.t_s
+                for i in rec:
+                    if active[i]:
+                        hist[i]["obs"].append(np.array(obs[i], copy=True))
+                        hist[i]["state_nd"].append(np.array(states[i], copy=True))
+                        hist[i]["t_s"].append(float(times[i]))
+            t0 = time.perf_counter()
+            action = np.asarray(act(obs, venv, active), dtype=np.float32)
+            wall += time.perf_counter() - t0
+            n_dec += int(active.sum())
+            if not np.all(np.isfinite(action)):
+                raise FloatingPointError(f"{name} produced non-finite actions")
+            for i in rec:
+                if active[i]:
+                    hist[i]["action"].append(np.array(action[i], copy=True))
+            obs, _, term, trunc, info = venv.step(action)
+            ended = (np.asarray(term) | np.asarray(trunc)) & active
+            if ended.any():
+                e = np.flatnonzero(ended)
+                success[e] = np.asarray(info["is_success"])[e]
+                speed[e] = vector_info(info, "touchdown_speed_m_s", n)[e]
+                if "miss_distance_m" in info:
+                    miss[e] = vector_info(info, "miss_distance_m", n)[e]
+                fuel[e] = np.asarray(info["fuel_used_kg"], dtype=np.float64)[e]
+                t_end[e] = np.asarray(info["time_s"], dtype=np.float64)[e]
+                if record_final:
+                    states = core.state_nd  # the final states: autoreset comes on the next step
+                    for i in e:
+                        if i in hist:
+                            hist[i]["t_s"].append(float(info["time_s"][i]))
+                            hist[i]["state_nd"].append(np.array(states[i], copy=True))
+                active &= ~ended
+            if not active.any():
+                break
+        else:
+            raise RuntimeError(f"{name}: {int(active.sum())} cases did not end within "
+                               f"{max_steps} steps")
+    finally:
+        venv.close()
+    records = {i: {k: np.asarray(v, dtype=np.float32 if k == "obs" else np.float64)
+                   for k, v in h.items()} for i, h in hist.items()}
+    return Rollout(success, speed, miss, fuel, t_end, n_dec, wall, records)
