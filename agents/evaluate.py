@@ -328,7 +328,8 @@ def optimal_solutions(scenario, states_nd: np.ndarray, progress: bool = True):
 # ----------------------------------------------------------------------------- comparison
 
 
-def _summary(res: PolicyResult, opt_fuel: np.ndarray | None) -> dict[str, Any]:
+def _summary(res: PolicyResult, opt_fuel: np.ndarray | None,
+             opt_tf: np.ndarray | None = None) -> dict[str, Any]:
     td = np.isfinite(res.touchdown_speed_m_s)
     row: dict[str, Any] = {
         "policy": res.name,
@@ -360,6 +361,14 @@ def _summary(res: PolicyResult, opt_fuel: np.ndarray | None) -> dict[str, Any]:
             gap_s = float(np.mean(gap[oks]))
         row["optimal_fuel_mean_kg"] = float(np.nanmean(opt))
     row["fuel_gap_pct"] = gap_s
+    # final-time gap: mean over successful cases of 100·(episode time − optimal tf)/optimal tf
+    row["final_time_gap_pct"] = float("nan")
+    if opt_tf is not None:
+        tf = opt_tf[res.case_ids]
+        okt = np.isfinite(tf) & np.isfinite(res.episode_time_s) & res.is_success
+        if okt.any():
+            row["final_time_gap_pct"] = float(np.mean(
+                100.0 * (res.episode_time_s[okt] - tf[okt]) / tf[okt]))
     row["fuel_gap_pct_all_cases"] = gap_all
     row["n_cases_in_gap"] = n_gap
     return row
@@ -368,7 +377,8 @@ def _summary(res: PolicyResult, opt_fuel: np.ndarray | None) -> dict[str, Any]:
 def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATES,
             seed: int = DEFAULT_SEED, env_kwargs: dict[str, Any] | None = None,
             open_loop: bool = True, n_expert_states: int = DEFAULT_EXPERT_STATES,
-            trace_cases: int = 3, progress: bool = True) -> dict[str, Any]:
+            trace_cases: int = 3, progress: bool = True,
+            optimum_workers: int = 1) -> dict[str, Any]:
     """Run ``policies`` and the optimiser baselines over one case set; return the report dict.
 
     Keys: ``env_id``, ``seed``, ``n_states``, ``rows`` (one summary per policy, see the module
@@ -384,7 +394,7 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
     scenario = env.unwrapped.scenario
     env.close()
     planar = states.shape[1] == 5
-    opt_fuel = None
+    opt_fuel = opt_tf = None
     sols = None
     opt_info: dict[str, Any] = {}
     if planar:
@@ -394,20 +404,36 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
         opt_info = {"solver": "optimizers.pontryagin.solve_many",
                     "converged": int(np.isfinite(opt_fuel).sum()),
                     "fuel_mean_kg": float(np.nanmean(opt_fuel)), "wall_s": wall}
+        opt_tf = np.array([s.tf_s if s.success else np.nan for s in sols], dtype=np.float64)
     else:
-        opt_info = {"solver": None, "note": "no per-case optimum for the 3D env: the "
-                                            "Pontryagin solver is planar"}
+        # 3D pinpoint: [001]'s serial GPM + shooting from each drawn state (cached on disk)
+        from agents.pinpoint_optimum import PinpointOpenLoopPolicy, pinpoint_optima
+
+        if progress:
+            print(f"Per-case optimum of {n_states} states (GPM + direct shooting, cached)...",
+                  flush=True)
+        t0 = time.perf_counter()
+        sols = pinpoint_optima(scenario, states, workers=optimum_workers, progress=progress)
+        opt_fuel = np.array([s.fuel_kg if s.success else np.nan for s in sols])
+        opt_tf = np.array([s.tf_s if s.success else np.nan for s in sols])
+        opt_info = {"solver": "agents.pinpoint_optimum (serial GPM + direct shooting)",
+                    "converged": int(np.isfinite(opt_fuel).sum()),
+                    "fuel_mean_kg": float(np.nanmean(opt_fuel)) if np.isfinite(
+                        opt_fuel).any() else float("nan"),
+                    "wall_s": time.perf_counter() - t0}
     runs: list[PolicyResult] = []
     all_policies: list[tuple[Policy, int]] = [(p, n_states) for p in policies]
     if planar and open_loop and sols is not None:
         all_policies.append((OpenLoopPolicy(sols), n_states))
+    if not planar and open_loop:
+        all_policies.append((PinpointOpenLoopPolicy(sols), n_states))
     if planar and n_expert_states and n_expert_states > 0:
         all_policies.append((ExpertPolicy(scenario), min(n_expert_states, n_states)))
     for pol, n in all_policies:
         if progress:
             print(f"Evaluating {pol.name} on {n} cases...", flush=True)
         runs.append(rollout(env_id, pol, n, seed, env_kwargs, trace_cases=trace_cases))
-    rows = [_summary(r, opt_fuel) for r in runs]
+    rows = [_summary(r, opt_fuel, opt_tf) for r in runs]
     return {"env_id": env_id, "seed": seed, "n_states": n_states,
             "env_kwargs": dict(env_kwargs or {}), "rows": rows, "optimum": opt_info,
             "results": runs, "optimal_solutions": sols, "initial_states_nd": states,
@@ -424,7 +450,7 @@ def markdown_table(report: dict[str, Any]) -> str:
     head = ["policy", "cases", "success %", "touchdown speed mean / p95 (m/s)"]
     if pinpoint:
         head.append("miss mean (m)")
-    head += ["fuel mean (kg)", "gap to optimum (%)", "µs / decision"]
+    head += ["fuel mean (kg)", "gap to optimum (%)", "final-time gap (%)", "µs / decision"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in report["rows"]:
         cells = [r["policy"], str(r["n_cases"]), _fmt(100 * r["success_rate"], ".1f"),
@@ -433,6 +459,7 @@ def markdown_table(report: dict[str, Any]) -> str:
         if pinpoint:
             cells.append(_fmt(r["miss_distance_mean_m"], ".0f"))
         cells += [_fmt(r["fuel_mean_kg"], ".2f"), _fmt(r.get("fuel_gap_pct"), "+.2f"),
+                  _fmt(r.get("final_time_gap_pct", float("nan")), "+.2f"),
                   _fmt(r["us_per_decision"], ".1f")]
         lines.append("| " + " | ".join(cells) + " |")
     opt = report.get("optimum", {})
@@ -458,6 +485,8 @@ def _json_report(report: dict[str, Any]) -> dict[str, Any]:
     if sols is not None:
         out["per_case"]["optimum_fuel_kg"] = [float(s.fuel_kg) if s.success else None
                                               for s in sols]
+        out["per_case"]["optimum_tf_s"] = [float(s.tf_s) if s.success else None
+                                           for s in sols]
     return out
 
 
@@ -505,6 +534,11 @@ def plot_comparison(report: dict[str, Any], path: str | Path) -> Path:
                     ax_u.step(tc["t_s"][:len(phi)], np.degrees(phi), where="post",
                               label=res.name)
             else:
+                if sols is not None and getattr(sols[cid], "success", False) \
+                        and res is results[0]:
+                    opt_r = np.linalg.norm(sols[cid].states_nd[:, :3], axis=1) * s.length_m
+                    ax_tr.plot(sols[cid].t_nodes_s, (opt_r - r_surf) / 1e3, "k--", lw=2,
+                               label="optimum")
                 rad = np.linalg.norm(y[:, :3], axis=1) * s.length_m
                 ax_tr.plot(tc["t_s"], (rad - r_surf) / 1e3, label=res.name)
                 if len(tc["action"]):
@@ -610,6 +644,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", default=None, help="also write the JSON report to this file")
     p.add_argument("--torch-threads", type=int, default=1,
                    help="torch threads for SB3 inference (default 1, as in training)")
+    p.add_argument("--optimum-workers", type=int, default=1,
+                   help="processes for the pinpoint per-case optimum (cached on disk)")
     args = p.parse_args(argv)
     import torch
 
@@ -634,7 +670,8 @@ def main(argv: list[str] | None = None) -> int:
     env_id = env_id or DEFAULT_ENV_ID
     report = compare(env_id, policies, n_states=args.n_states, seed=args.seed,
                      env_kwargs=env_kwargs, open_loop=not args.no_open_loop,
-                     n_expert_states=args.expert_states, trace_cases=args.trace_cases)
+                     n_expert_states=args.expert_states, trace_cases=args.trace_cases,
+                     optimum_workers=args.optimum_workers)
     publish_report(report, args.out or Path("results") / "evaluate", args.json)
     return 0
 

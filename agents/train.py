@@ -122,7 +122,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="states the (slow) closed-loop re-planning expert is run on "
                         "(default: agents.evaluate's default)")
     p.add_argument("--no-eval", action="store_true", help="same as --eval-states 0")
-    p.add_argument("--verbose", "-v", type=int, default=1, help="SB3 verbosity (0, 1, 2)")
+    p.add_argument("--verbose", "-v", type=int, default=0,
+                   help="SB3 verbosity (default 0: progress bar and a one-line summary every "
+                        "5 %% of training; 1 adds SB3's full logger table after every rollout, "
+                        "which TensorBoard always gets)")
+    p.add_argument("--summary-every", type=int, default=None, metavar="STEPS",
+                   help="env steps between console summary lines (default n_timesteps/20; "
+                        "0: none)")
     return p
 
 
@@ -299,11 +305,42 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
             return path
 
     class EpisodeInfoCallback(BaseCallback):
-        """Log the mean SI landing quantities of finished episodes (``episode/*``)."""
+        """Log the mean SI landing quantities of finished episodes (``episode/*``) and, every
+        ``summary_every`` env steps, print one summary line of the episodes finished since the
+        previous line (success rate, gate/touchdown speed, miss distance, fuel)."""
 
         def __init__(self) -> None:
             super().__init__()
             self._acc: dict[str, list[float]] = {k: [] for k in _EPISODE_INFO_KEYS}
+            self._console: dict[str, list[float]] = {k: [] for k in (*_EPISODE_INFO_KEYS,
+                                                                       "is_success")}
+            self.summary_every = 0
+            self.total_timesteps = 0
+            self._next_summary = 0
+            self._t0 = time.perf_counter()
+
+        def _on_training_start(self) -> None:
+            self._t0 = time.perf_counter()
+            if self.summary_every > 0:
+                self._next_summary = self.model.num_timesteps + self.summary_every
+
+        def _summary_line(self) -> str | None:
+            c = self._console
+            n = len(c["is_success"])
+            if n == 0:
+                return None
+            parts = [f"step {self.model.num_timesteps:,}/{self.total_timesteps:,}",
+                     f"{n} episodes", f"success {100 * np.mean(c['is_success']):.1f} %"]
+            labels = {"touchdown_speed_m_s": ("touchdown", "m/s", ".1f"),
+                      "miss_distance_m": ("miss", "m", ".0f"),
+                      "fuel_used_kg": ("fuel", "kg", ".1f")}
+            for key, (label, unit, spec) in labels.items():
+                if c[key]:
+                    parts.append(f"{label} {format(float(np.mean(c[key])), spec)} {unit}")
+            parts.append(f"{time.perf_counter() - self._t0:.0f} s")
+            for v in c.values():
+                v.clear()
+            return " | ".join(parts)
 
         def _on_step(self) -> bool:
             dones = self.locals.get("dones")
@@ -316,6 +353,8 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
                     v = info.get(k)
                     if v is not None and np.isfinite(v):
                         self._acc[k].append(float(v))
+                        self._console[k].append(float(v))
+                self._console["is_success"].append(float(bool(info.get("is_success"))))
             return True
 
         def _on_rollout_end(self) -> None:
@@ -326,6 +365,11 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
                 if vals:
                     self.logger.record(f"episode/{k}", float(np.mean(vals)))
                     vals.clear()
+            if self.summary_every > 0 and self.model.num_timesteps >= self._next_summary:
+                self._next_summary = self.model.num_timesteps + self.summary_every
+                line = self._summary_line()
+                if line:
+                    print(line, flush=True)
 
     return RolloutCheckpointCallback(), EpisodeInfoCallback()
 
@@ -406,6 +450,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             venv.training = True
         model = algo_class(algo).load(ckpt, env=venv, device=run.get("device", "cpu"),
                                        tensorboard_log=tb_dir)
+        model.verbose = int(run.get("verbose", 0))  # the console of this session
         rb = ckpt.parent / f"rl_model_replay_buffer_{steps}_steps.pkl"
         if rb.exists() and hasattr(model, "load_replay_buffer"):
             model.load_replay_buffer(rb)
@@ -435,7 +480,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         kwargs = resolve_algo_kwargs(hp, algo, n_actions=int(np.prod(venv.action_space.shape)))
         model = algo_class(algo)(hp.get("policy", "MlpPolicy"), venv, seed=seed,
                                   device=run.get("device", "cpu"), tensorboard_log=tb_dir,
-                                  verbose=int(run.get("verbose", 1)), **kwargs)
+                                  verbose=int(run.get("verbose", 0)), **kwargs)
         if init is not None:
             # the exploration noise (log_std) stays this run's log_std_init: a cloned policy
             # carries whatever its trainer left there
@@ -457,6 +502,9 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     remaining = n_timesteps - model.num_timesteps
     save_freq = run.get("save_freq") or max(n_timesteps // 20, 1)
     ckpt_cb, info_cb = _make_callbacks(run_dir, save_freq, hp)
+    every = run.get("summary_every")
+    info_cb.summary_every = max(n_timesteps // 20, 1) if every is None else max(int(every), 0)
+    info_cb.total_timesteps = n_timesteps
 
     def _on_sigterm(signum, frame):  # turn SIGTERM into the Ctrl-C path: checkpoint, then exit
         raise KeyboardInterrupt

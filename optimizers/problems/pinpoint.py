@@ -76,6 +76,10 @@ class PinpointOCP(OCP):
     """
 
     scenario: PinpointScenario
+    #: lowest altitude above R_L allowed along the path (m). 0: the surface ([001] constrains
+    #: only the end); ``LunarPinpointLanding-v*`` ends an episode wherever the lander crosses the
+    #: 2 km gate sphere, so the env's own per-case optimum uses the gate altitude here.
+    min_altitude_m: float = 0.0
     params: dyn.Moon3DParams = field(init=False, repr=False)
     x0_nd: np.ndarray = field(init=False, repr=False)
     target_position_nd: np.ndarray = field(init=False, repr=False)
@@ -94,6 +98,8 @@ class PinpointOCP(OCP):
         if not isinstance(sc, PinpointScenario):
             raise TypeError(f"scenario must be a PinpointScenario (e.g. get_scenario('peng2012'))"
                             f", got {type(sc).__name__}")
+        if not (np.isfinite(self.min_altitude_m) and self.min_altitude_m >= 0.0):
+            raise ValueError(f"min_altitude_m = {self.min_altitude_m!r} must be finite and >= 0")
         s = sc.scaling()
         t = sc.target
         object.__setattr__(self, "params", sc.params(s))
@@ -202,12 +208,17 @@ class PinpointOCP(OCP):
         u, w = self.uw(state)
         b = self.uw_bound_nd
         r2 = state[dyn.X] ** 2 + state[dyn.Y] ** 2 + state[dyn.Z] ** 2
-        return (ca.vertcat(u, w, r2), np.array([-b, -b, self.surface_radius_nd ** 2]),
+        return (ca.vertcat(u, w, r2), np.array([-b, -b, self.floor_radius_nd ** 2]),
                 np.array([b, b, np.inf]))
 
     @property
     def surface_radius_nd(self) -> float:
         return float(self.scaling.length_nd(self.scenario.body.radius_m))
+
+    @property
+    def floor_radius_nd(self) -> float:
+        """Radius the path must stay above: R_L + ``min_altitude_m`` (normalised)."""
+        return float(self.scaling.length_nd(self.scenario.body.radius_m + self.min_altitude_m))
 
     def state_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Loose box on every node state; the mass never goes below m0 − fuel_max."""
@@ -275,6 +286,10 @@ class PinpointOCP(OCP):
         if ok and path.get("min_altitude_m", np.inf) < 0.0:
             return False, (f"the trajectory passes {-path['min_altitude_m']:.1f} m below the "
                            "surface")
+        if ok and self.min_altitude_m > 0 and \
+                path.get("min_altitude_m", np.inf) < self.min_altitude_m - 1.0:
+            return False, (f"the trajectory passes {path['min_altitude_m']:.1f} m above R_L, "
+                           f"below its {self.min_altitude_m:g} m floor")
         if ok and path.get("final_mass_kg", np.inf) < self.mass_min_nd * self.scaling.mass_kg \
                 - 1e-6:
             return False, f"uses more than the {self.scenario.fuel_max_kg:g} kg fuel budget"

@@ -284,7 +284,7 @@ def _solver(problem, **kwargs) -> SerialSolver:
     if isinstance(problem, str):
         problem = get_scenario(problem)
     sc = problem.scenario if isinstance(problem, PinpointOCP) else problem
-    key = (id(sc), tuple(sorted(kwargs.items())))
+    key = (id(sc), getattr(problem, "min_altitude_m", 0.0), tuple(sorted(kwargs.items())))
     if key not in _SOLVERS or _SOLVERS[key].ocp.scenario is not sc:
         _SOLVERS[key] = SerialSolver(problem, **kwargs)
     return _SOLVERS[key]

@@ -1,0 +1,67 @@
+"""Per-case optimum of LunarPinpointLanding-v0 (agents.pinpoint_optimum) and its evaluation row."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import agents.pinpoint_optimum as po
+from agents.evaluate import _summary, initial_states, rollout
+
+ENV_ID = "LunarPinpointLanding-v0"
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+
+    return gym.make(ENV_ID).unwrapped.scenario
+
+
+def test_optimum_from_env_states_is_cached_atomically(scenario, tmp_path, monkeypatch):
+    states = initial_states(ENV_ID, 2, 2026)
+    opts = po.pinpoint_optima(scenario, states, cache_dir=tmp_path, progress=False)
+    assert all(o.success for o in opts)
+    for o, x0 in zip(opts, states, strict=True):
+        # [001]'s dispersion: ~280 kg in ~550 s; the law starts at the replayed initial state
+        assert 270.0 < o.fuel_kg < 295.0 and 530.0 < o.tf_s < 580.0
+        assert o.fuel_kg == pytest.approx(o.tf_s * scenario.vehicle.mass_flow_kg_s, rel=1e-9)
+        np.testing.assert_allclose(o.states_nd[0], x0, rtol=0, atol=1e-12)
+        assert o.t_nodes_s[0] == 0.0 and o.t_nodes_s[-1] == pytest.approx(o.tf_s)
+        # the path stays above the env's 2 km gate at every node (the env ends episodes there)
+        r_gate = (scenario.body.radius_m + scenario.target.altitude_m) / scenario.scaling(
+        ).length_m
+        assert np.linalg.norm(o.states_nd[:, :3], axis=1).min() >= r_gate - 1e-6
+    files = sorted(p.name for p in tmp_path.iterdir())
+    assert len(files) == 2 and all(f.endswith(".npz") and not f.startswith(".") for f in files)
+
+    def boom(*a, **k):
+        raise AssertionError("a cached case was solved again")
+
+    monkeypatch.setattr(po, "solve_case", boom)
+    again = po.pinpoint_optima(scenario, states, cache_dir=tmp_path, progress=False)
+    for a, b in zip(opts, again, strict=True):
+        assert a.fuel_kg == b.fuel_kg
+        np.testing.assert_array_equal(a.controls_rad, b.controls_rad)
+
+    # the open-loop replay of the optimum flies the same cases in the env, and the summary
+    # reports fuel and final-time gaps against the per-case optimum
+    res = rollout(ENV_ID, po.PinpointOpenLoopPolicy(again), 2, 2026, {"dt_s": 0.5})
+    row = _summary(res, np.array([o.fuel_kg for o in again]), np.array([o.tf_s for o in again]))
+    assert row["optimal_fuel_mean_kg"] == pytest.approx(np.mean([o.fuel_kg for o in again]))
+    assert "final_time_gap_pct" in row
+    ok = res.is_success
+    if ok.any():
+        assert abs(row["fuel_gap_pct"]) < 1.0 and abs(row["final_time_gap_pct"]) < 1.0
+
+
+def test_bad_inputs(scenario, tmp_path):
+    with pytest.raises(ValueError, match="expected"):
+        po.pinpoint_optima(scenario, np.zeros((2, 5)), cache_dir=tmp_path)
+    with pytest.raises(ValueError, match="workers"):
+        po.pinpoint_optima(scenario, np.zeros((2, 7)), cache_dir=tmp_path, workers=0)
+    failed = po.PinpointOptimum(False, float("nan"), float("nan"), message="x")
+    with pytest.raises(ValueError, match="failed"):
+        failed.angles_at(1.0)
