@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["arithmetic_crossover", "bound_directed_mutation", "annealing_neighbour",
-           "roulette", "adaptive_rate", "uniform_population"]
+           "roulette", "adaptive_rate", "uniform_population", "linear_crossover",
+           "nonuniform_mutation", "niche_clearing"]
 
 
 def uniform_population(lb: np.ndarray, ub: np.ndarray, n: int, rng: np.random.Generator
@@ -116,3 +117,49 @@ def adaptive_rate(f_ind: np.ndarray, f_max: float, f_avg: float, p1: float, p2: 
         down = np.clip(_ratio(f_max - f_ind, f_max - f_avg), 0.0, 1.0)
         down = np.where(f_max - f_avg > 0, down, 0.0)
     return np.where(above, p1 - p2 * up, p1), np.where(above, c1 + c2 * down, c1 + c2)
+
+
+def linear_crossover(A: np.ndarray, B: np.ndarray, rng: np.random.Generator
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Linear (whole arithmetic) crossover, [004] Wang et al. 2001 §2.2:
+    ``Z' = α Z + (1 − α) Y``, ``Y' = α Y + (1 − α) Z`` with one α ~ U(0, 1) per pair,
+    independent between pairs. Children are convex combinations (inside any box holding the
+    parents). Shapes: (n_pairs, dim) in and out.
+    """
+    alpha = rng.random((A.shape[0], 1))
+    return alpha * A + (1.0 - alpha) * B, alpha * B + (1.0 - alpha) * A
+
+
+def nonuniform_mutation(Z: np.ndarray, generation: int, n_generations: int, b: float,
+                        lb: np.ndarray, ub: np.ndarray, rng: np.random.Generator
+                        ) -> np.ndarray:
+    """Michalewicz's non-uniform mutation, [004] §2.2: with a fair coin per entry,
+    ``Z + Δ(t, ub − Z)`` or ``Z − Δ(t, Z − lb)``, ``Δ(t, y) = y (1 − r^((1 − t/T)^b))`` with
+    r ~ U(0, 1), t the generation and T the last one. The step shrinks to 0 as t → T; it never
+    leaves [lb, ub]. Every entry of every row mutates (callers pick the rows).
+    """
+    frac = min(max(generation / n_generations, 0.0), 1.0)
+    r = rng.random(Z.shape)
+    step = 1.0 - r ** ((1.0 - frac) ** b)
+    up = rng.integers(0, 2, size=Z.shape).astype(bool)
+    out = np.where(up, Z + step * (ub - Z), Z - step * (Z - lb))
+    return np.clip(out, lb, ub)  # guards round-off only
+
+
+def niche_clearing(X: np.ndarray, cost: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Niche penalty (clearing with capacity 1): scanning from the best, an individual closer
+    than ``radius`` (per coordinate, scaled: max_k |x_k − y_k| / radius_k < 1) to an already
+    kept better one is marked. Returns a bool mask, True for the penalised (similar, worse)
+    individuals. Non-finite costs are always penalised.
+    """
+    order = np.argsort(cost, kind="stable")
+    Xo = X[order]
+    # near[i, j]: individuals i and j (in cost order) are within one niche radius
+    near = (np.abs(Xo[:, None, :] - Xo[None, :, :]) / radius).max(axis=2) < 1.0
+    pen = ~np.isfinite(cost[order])
+    for i in range(len(order)):
+        if not pen[i]:  # a niche leader: every worse individual in its niche is penalised
+            pen[i + 1:] |= near[i, i + 1:]
+    penalised = np.empty_like(pen)
+    penalised[order] = pen
+    return penalised
