@@ -5,5 +5,7 @@ indirect solvers, on the shared lunar_env dynamics."""
 from .landing import PenalisedProblem, PlanarLandingProblem
 from .pinpoint import PinpointOCP
 from .planar_ocp import PlanarOCP
+from .two_impulse import TwoImpulseProblem
 
-__all__ = ["PlanarLandingProblem", "PenalisedProblem", "PlanarOCP", "PinpointOCP"]
+__all__ = ["PlanarLandingProblem", "PenalisedProblem", "PlanarOCP", "PinpointOCP",
+           "TwoImpulseProblem"]

@@ -8,4 +8,5 @@ keys ``published`` and ``measured``; plots go to ``--out`` (default ``results/<s
 SCENARIOS = {
     "zhu2007": "optimizers.reproduce.zhu2007",
     "peng2012": "optimizers.reproduce.peng2012",
+    "wang2001": "optimizers.reproduce.wang2001",
 }
