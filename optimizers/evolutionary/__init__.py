@@ -4,10 +4,14 @@ operators (:mod:`.operators`) and penalties (:mod:`.penalties`).
 - :class:`~.asaga.ASAGA`: adaptive simulated-annealing GA, [000] Zhu & Xu 2007 (the template a
   new evolutionary algorithm copies).
 - :class:`~.ea.EA`: (λ+μ) EA with niching, [004] Wang et al. 2001 (two-impulse transfers).
+- :class:`~.gaia.GAIA` / :class:`~.gaia.AIA`: (guiding) artificial immune algorithm, and
+  :class:`~.aga.AGA`, the adaptive GA it is compared with, [002] Peng et al.
 """
 
+from .aga import AGA
 from .asaga import ASAGA
 from .base import EvolutionaryAlgorithm
 from .ea import EA
+from .gaia import AIA, GAIA
 
-__all__ = ["ASAGA", "EA", "EvolutionaryAlgorithm"]
+__all__ = ["ASAGA", "EA", "EvolutionaryAlgorithm", "GAIA", "AIA", "AGA"]

@@ -3,9 +3,10 @@ global optimisers and :class:`~optimizers.common.ocp.OCP` s for the transcriptio
 indirect solvers, on the shared lunar_env dynamics."""
 
 from .landing import PenalisedProblem, PlanarLandingProblem
+from .low_thrust import LowThrustTransferProblem
 from .pinpoint import PinpointOCP
 from .planar_ocp import PlanarOCP
 from .two_impulse import TwoImpulseProblem
 
 __all__ = ["PlanarLandingProblem", "PenalisedProblem", "PlanarOCP", "PinpointOCP",
-           "TwoImpulseProblem"]
+           "TwoImpulseProblem", "LowThrustTransferProblem"]
