@@ -16,6 +16,7 @@ Registry: ``zhu2007`` ([000]), ``peng2012`` ([001]), ``peng_mars`` ([002]), ``wa
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -44,6 +45,13 @@ def _check_positive(obj, *names: str) -> None:
 def _check_finite(obj, *names: str) -> None:
     for n in names:
         require_finite(f"{type(obj).__name__}.{n}", getattr(obj, n))
+
+
+def _check_tf_bounds(name: str, tf_bounds_s) -> None:
+    require_range(f"{name}.tf_bounds_s", tf_bounds_s)
+    if not (tf_bounds_s[0] >= 0 and tf_bounds_s[1] > 0):
+        raise ValueError(f"{name}.tf_bounds_s = {tuple(tf_bounds_s)!r} must be >= 0 with an upper "
+                         "bound > 0 (final times are durations in s)")
 
 
 @dataclass(frozen=True)
@@ -206,7 +214,7 @@ class PlanarScenario:
     model = "planar"
 
     def __post_init__(self) -> None:
-        require_range(f"{self.name}.tf_bounds_s", self.tf_bounds_s)
+        _check_tf_bounds(self.name, self.tf_bounds_s)
         if self.surface_radius_m is None:
             object.__setattr__(self, "surface_radius_m", self.body.radius_m)
         require_finite_positive(f"{self.name}.surface_radius_m", self.surface_radius_m)
@@ -394,16 +402,32 @@ class PinpointScenario:
     model = "moon3d"
 
     def __post_init__(self) -> None:
-        for n in ("tf_bounds_s", "alpha_bounds_rad", "beta_bounds_rad"):
+        # The same checks as PlanarScenario, in the pinpoint geometry: every state the
+        # dispersion can draw starts above the terminal gate (the target's altitude) with
+        # propellant, so env resets and optimisers never meet an impossible start.
+        _check_tf_bounds(self.name, self.tf_bounds_s)
+        for n in ("alpha_bounds_rad", "beta_bounds_rad"):
             require_range(f"{self.name}.{n}", getattr(self, n))
         if abs(self.initial.mass_kg - self.vehicle.mass_kg) > 1e-9 * self.vehicle.mass_kg:
             raise ValueError(f"{self.name}: initial.mass_kg = {self.initial.mass_kg!r} must equal "
                              f"vehicle.mass_kg = {self.vehicle.mass_kg!r}")
-        if self.initial.altitude_m + self.dispersion.altitude_m[0] <= 0:
+        if not self.target.altitude_m < self.initial.altitude_m:
+            raise ValueError(f"{self.name}: target.altitude_m = {self.target.altitude_m!r} is not "
+                             f"below initial.altitude_m = {self.initial.altitude_m!r}; the lander "
+                             "descends to the target")
+        if self.initial.altitude_m + self.dispersion.altitude_m[0] <= self.target.altitude_m:
             raise ValueError(f"{self.name}: dispersion.altitude_m = {self.dispersion.altitude_m!r}"
-                             " reaches below the surface")
-        if not self.fuel_max_kg > 0:
-            raise ValueError(f"{self.name}.fuel_max_kg = {self.fuel_max_kg!r} must be > 0")
+                             " allows a start at or below the target's altitude "
+                             f"{self.target.altitude_m!r} m (the terminal gate); the lowest start "
+                             "must stay above it")
+        if self.vehicle.mass_kg + self.dispersion.mass_kg[0] <= self.vehicle.dry_mass_kg:
+            raise ValueError(f"{self.name}: dispersion.mass_kg = {self.dispersion.mass_kg!r} "
+                             "allows a start at or below the dry mass "
+                             f"{self.vehicle.dry_mass_kg!r} kg")
+        for n in ("uw_bound_m_s", "fuel_max_kg"):  # inf = no constraint; NaN and <= 0 refused
+            v = getattr(self, n)
+            if not (isinstance(v, numbers.Real) and not isinstance(v, bool) and v > 0):
+                raise ValueError(f"{self.name}.{n} = {v!r} must be > 0 (math.inf: no bound)")
 
     def scaling(self) -> Scaling:
         """Normalisation of [001] eq. (11): L = R_L, m_ref = m0."""

@@ -22,24 +22,66 @@ from gymnasium.vector.utils import batch_space
 from .. import integrators as integ
 from ._core import LanderBatch
 
-__all__ = ["LanderEnv", "LanderVectorEnv", "validate_actions"]
+__all__ = ["LanderEnv", "LanderVectorEnv", "validate_actions", "check_reset_options",
+           "RESET_OPTION_KEYS"]
 
 
 def validate_actions(action, shape: tuple[int, ...]) -> np.ndarray:
     """Action(s) as float64 of ``shape``; NaN/inf or a wrong shape raise ``ValueError``.
 
-    Finite out-of-range values are *not* an error; the task clips them to [-1, 1].
+    A shape that differs from ``shape`` only by axes of length 1 is accepted (a scalar for a
+    one-channel env, ``(N,)`` for ``(N, 1)``); any other shape is refused even when the number
+    of elements matches: ``(2, 4)`` for four landers with two channels each would mix the
+    landers' actions up. Finite out-of-range values are *not* an error; the task clips them to
+    [-1, 1].
     """
-    a = np.asarray(action, dtype=np.float64)
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"action {action!r} is not an array of numbers of shape {shape}"
+                         ) from None
     if a.shape != shape:
-        if a.size == int(np.prod(shape)):
+        squeeze = tuple(d for d in a.shape if d != 1)
+        if squeeze == tuple(d for d in shape if d != 1):
             a = a.reshape(shape)
         else:
-            raise ValueError(f"action has shape {a.shape}; expected {shape}")
+            raise ValueError(f"action has shape {a.shape}; expected {shape} "
+                             "(landers along the first axis, action channels along the last)")
     if not np.isfinite(a).all():
         raise ValueError(f"action {np.asarray(action)!r} contains NaN or inf; actions must be "
                          "finite (out-of-range finite values are clipped to [-1, 1])")
     return a
+
+
+#: ``reset(options=...)`` keys every lander env understands.
+RESET_OPTION_KEYS = ("state_si", "state_nd", "nominal")
+
+
+def _check_state_option(key: str, value, n_state: int, num_envs: int | None) -> None:
+    """Shape/finite check of a ``state_si`` / ``state_nd`` reset option (before any reset)."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"options[{key!r}] = {value!r} is not an array of numbers") from None
+    ok = (n_state,) if num_envs is None else ((n_state,), (num_envs, n_state))
+    if arr.shape != (n_state,) and (num_envs is None or arr.shape != (num_envs, n_state)):
+        raise ValueError(f"options[{key!r}] has shape {arr.shape}; expected "
+                         + " or ".join(map(str, ok if num_envs is not None else [ok])))
+    if not np.isfinite(arr).all():
+        raise ValueError(f"options[{key!r}] contains NaN or inf: {arr!r}")
+
+
+def check_reset_options(options, n_state: int, num_envs: int | None = None) -> None:
+    """Validate ``reset(options=...)``: known keys, state rows of the right shape, finite.
+
+    Raises ValueError naming the key (unknown keys are errors, not silently ignored).
+    """
+    from ..validation import require_option_keys
+
+    require_option_keys("reset options", options, RESET_OPTION_KEYS)
+    for key in ("state_si", "state_nd"):
+        if options and options.get(key) is not None:
+            _check_state_option(key, options[key], n_state, num_envs)
 
 
 class LanderEnv(gym.Env):
@@ -136,6 +178,7 @@ class LanderEnv(gym.Env):
 
     # -- protocol -------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        check_reset_options(options, self._task.model.n_state)
         super().reset(seed=seed)
         y0 = self._task.initial_state(self.np_random, options)
         self._batch.set_state(0, y0)
@@ -263,8 +306,11 @@ class LanderVectorEnv(VectorEnv):
     _task_cls: type = None
 
     def __init__(self, num_envs: int, parallel: bool | None = None, **task_kwargs: Any) -> None:
-        if int(num_envs) < 1:
-            raise ValueError(f"num_envs = {num_envs!r} must be >= 1")
+        from ..validation import require_bool, require_integer
+
+        num_envs = require_integer("num_envs", num_envs, minimum=1)
+        if parallel is not None:
+            parallel = require_bool("parallel", parallel)
         task_kwargs.pop("render_mode", None)
         task_kwargs.pop("max_episode_steps", None)
         self.num_envs = int(num_envs)
@@ -279,6 +325,11 @@ class LanderVectorEnv(VectorEnv):
         self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._act_shape = (self.num_envs, *self.single_action_space.shape)
+        self._started = False  # step() before reset() is an error, not a division by zero
+
+    def _require_started(self) -> None:
+        if not self._started:
+            raise RuntimeError("step() called before reset(); call reset() first")
 
     # ---- public description of the task (what policies and wrappers may rely on) -----------
     @classmethod
@@ -370,6 +421,7 @@ class LanderVectorEnv(VectorEnv):
         the same step). Returns per-lander arrays: ``reward``, ``terminated``, ``truncated``,
         ``is_success``, ``touchdown_speed_m_s`` and ``miss_distance_m`` (NaN where undefined),
         ``fuel_used_kg``, ``altitude_m``, ``time_s``."""
+        self._require_started()
         a = validate_actions(actions, self._act_shape)
         out = dict(self._batch.step(self._task.controls_from_actions(a)))
         b, task = self._batch, self._task
@@ -378,31 +430,58 @@ class LanderVectorEnv(VectorEnv):
         out["time_s"] = b.t_nd * task.time_ref_s
         return out
 
-    def _reset_one(self, i: int, options: dict | None) -> None:
+    def _initial_state(self, i: int, options: dict | None) -> np.ndarray:
         opt = options
         if options:
             opt = {}
             for k, v in options.items():
                 arr = np.asarray(v) if k in ("state_si", "state_nd") else None
                 opt[k] = arr[i] if arr is not None and arr.ndim == 2 else v
-        self._batch.set_state(i, self._task.initial_state(self._rngs[i], opt))
+        return self._task.initial_state(self._rngs[i], opt)
+
+    def _reset_one(self, i: int, options: dict | None) -> None:
+        self._batch.set_state(i, self._initial_state(i, options))
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """Reset every sub-env (see the class docstring for seeds and options).
+
+        All-or-nothing: every initial state is computed first, so a bad row of
+        ``options["state_si"]`` / ``["state_nd"]`` raises ValueError naming the row and leaves
+        every lander (and every generator) as it was.
+        """
+        check_reset_options(options, self._task.model.n_state, self.num_envs)
+        rngs = self._rngs
         if seed is not None:
             seeds = ([seed + i for i in range(self.num_envs)] if isinstance(seed, int)
                      else list(seed))
             if len(seeds) != self.num_envs:
                 raise ValueError(f"{len(seeds)} seeds given for {self.num_envs} envs")
-            self._rngs = [seeding.np_random(s)[0] for s in seeds]
-        for i in range(self.num_envs):
-            self._reset_one(i, options)
+            rngs = [seeding.np_random(s)[0] for s in seeds]
+        saved = [r.bit_generator.state for r in self._rngs]
+        old_rngs, self._rngs = self._rngs, rngs
+        y0 = np.empty_like(self._batch.y)
+        try:
+            for i in range(self.num_envs):
+                try:
+                    y0[i] = self._initial_state(i, options)
+                except ValueError as exc:
+                    raise ValueError(f"reset of sub-env {i} (row {i} of the options): {exc}"
+                                     ) from None
+        except BaseException:
+            self._rngs = old_rngs
+            for r, st in zip(self._rngs, saved, strict=True):
+                r.bit_generator.state = st
+            raise
+        self._batch.set_state(np.arange(self.num_envs), y0)
         self._autoreset[:] = False
+        self._started = True
         b = self._batch
         obs = self._task.observation(b.y, b.t_nd * self._task.time_ref_s)
         n = self.num_envs
         return obs, self._info(np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, bool))
 
     def step(self, actions):
+        self._require_started()
         a = validate_actions(actions, self._act_shape)
         controls = self._task.controls_from_actions(a)
         n = self.num_envs

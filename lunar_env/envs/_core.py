@@ -28,6 +28,7 @@ import numba
 import numpy as np
 
 from .. import integrators as integ
+from ..validation import require_bool, require_finite_positive, require_integer
 
 __all__ = ["LanderBatch", "landing_penalty", "SPEED_SCALE_M_S", "MISS_SCALE_M"]
 
@@ -216,30 +217,36 @@ def init_task(task, sc, *, dt_s: float, substeps: int, time_limit_s: float | Non
     """Validate and set what both landing tasks share (timing, tolerances, scaled constants).
 
     ``positive`` names further settings that must be finite and > 0 (e.g. ``success_miss_m``).
-    Raises ValueError naming the setting and its value.
+    ``substeps`` must be an integer >= 1 (1.7 is refused, not truncated), ``throttle_channel`` a
+    bool (the string ``"no"`` is refused, not read as True), ``time_limit_s`` and
+    ``max_fall_s`` finite and > 0 when given. Raises ValueError (or
+    :class:`~lunar_env.validation.InvalidTypeError`) naming the setting and its value.
     """
     checks = dict(dt_s=dt_s, success_speed_m_s=success_speed_m_s,
                   cutoff_speed_m_s=cutoff_speed_m_s, **positive)
-    for name, v in checks.items():
-        if not (np.isfinite(v) and v > 0):
-            raise ValueError(f"{name} = {v!r} must be finite and > 0")
-    if int(substeps) < 1:
-        raise ValueError(f"substeps = {substeps!r} must be >= 1")
+    vals = {name: require_finite_positive(name, v) for name, v in checks.items()}
+    substeps = require_integer("substeps", substeps, minimum=1)
+    throttle_channel = require_bool("throttle_channel", throttle_channel)
+    if time_limit_s is not None:
+        time_limit_s = require_finite_positive("time_limit_s", time_limit_s)
+    if max_fall_s is not None:
+        max_fall_s = require_finite_positive("max_fall_s", max_fall_s)
+    dt_s = vals["dt_s"]
     task.scenario = sc
     task.scaling = s = sc.scaling()
     task.params = sc.params(s)
     task.params_array = task.params.as_array()
-    task.dt_s = float(dt_s)
-    task.substeps = int(substeps)
+    task.dt_s = dt_s
+    task.substeps = substeps
     task.dt_nd = float(s.time_nd(task.dt_s))
     task.h_nd = task.dt_nd / task.substeps
     task.time_limit_s = float(time_limit_s if time_limit_s is not None
                               else 1.5 * sc.tf_bounds_s[1])
     if not task.time_limit_s >= task.dt_s:
-        raise ValueError(f"time_limit_s = {time_limit_s!r} must be >= dt_s = {dt_s!r}")
+        raise ValueError(f"time_limit_s = {task.time_limit_s!r} must be >= dt_s = {dt_s!r}")
     task.max_fall_s = float(max_fall_s if max_fall_s is not None else task.time_limit_s)
     task.n_fall = fall_steps(task.max_fall_s, task.dt_s / task.substeps)
-    task.throttle_channel = bool(throttle_channel)
+    task.throttle_channel = throttle_channel
     task.success_speed_m_s = float(success_speed_m_s)
     task.cutoff_speed_m_s = float(cutoff_speed_m_s)
     task.dry_mass_nd = float(s.mass_nd(sc.vehicle.dry_mass_kg))
