@@ -321,7 +321,7 @@ class RayExecutor(Executor):
         if not ray.is_initialized():
             kw = dict(include_dashboard=False, log_to_driver=True, logging_level="WARNING")
             kw.update(init_kwargs)
-            ray.init(address=None if self.address == "local" else self.address, **kw)
+            ray.init(address=self.address, **kw)  # Ray's "local": a new instance
             self._owns = True
         self.n_workers = max(1, int(ray.cluster_resources().get("CPU", 1) // num_cpus_per_task))
         self.max_in_flight = int(max_in_flight or 4 * self.n_workers)
