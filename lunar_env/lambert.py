@@ -50,7 +50,8 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["LambertSolutions", "solve_lambert", "COLLINEAR_SIN_TOL", "max_revolutions",
+__all__ = ["LambertSolutions", "LambertFlatSolutions", "solve_lambert", "solve_lambert_flat",
+           "COLLINEAR_SIN_TOL", "max_revolutions",
            "planar_polar_state", "propagate_planar_coast"]
 
 # |r̂1 × r̂2| below this: r1 and r2 are taken as collinear (the plane of the arc is undefined;
@@ -59,8 +60,9 @@ COLLINEAR_SIN_TOL = 1e-10
 
 _BATTIN = 0.01      # |x − 1| below this: Battin's hypergeometric series
 _LAGRANGE = 0.2     # |x − 1| below this (and above _BATTIN): Lagrange's expression
-_TOL_SINGLE = 1e-11  # Householder stop on |Δx| (third order: the last step is far smaller)
-_TOL_MULTI = 1e-11
+_TOL_SINGLE = 1e-5  # Householder stop on |Δx| (Izzo 2015): the last step is third order, so x
+# is then converged to round-off (tested against pykep to 1e-13 relative)
+_TOL_MULTI = 1e-8
 _MAX_ITER = 15
 _PI = math.pi
 
@@ -296,6 +298,22 @@ def _batch_parallel(r1, r2, tof, mu, clockwise, n_use, v1, v2, iters, ok):
                    ok[b])
 
 
+@njit(cache=True)
+def _flat_serial(r1, r2, tof, mu, clockwise, n_use, offsets, v1, v2, iters, ok):
+    for b in range(r1.shape[0]):
+        lo, hi = offsets[b], offsets[b + 1]
+        _solve_one(r1[b], r2[b], tof[b], mu[b], clockwise[b], n_use[b], v1[lo:hi], v2[lo:hi],
+                   iters[lo:hi], ok[lo:hi])
+
+
+@njit(cache=True, parallel=True)
+def _flat_parallel(r1, r2, tof, mu, clockwise, n_use, offsets, v1, v2, iters, ok):
+    for b in prange(r1.shape[0]):
+        lo, hi = offsets[b], offsets[b + 1]
+        _solve_one(r1[b], r2[b], tof[b], mu[b], clockwise[b], n_use[b], v1[lo:hi], v2[lo:hi],
+                   iters[lo:hi], ok[lo:hi])
+
+
 # Below this batch size the serial kernel wins (thread start-up costs more than the work).
 _PARALLEL_MIN_BATCH = 2048
 
@@ -338,6 +356,33 @@ class LambertSolutions:
         return self.valid.sum(axis=1)
 
 
+@dataclass(frozen=True)
+class LambertFlatSolutions:
+    """All Lambert arcs of a batch, one row per solution (no padding): what
+    :func:`solve_lambert_flat` returns. Solutions of problem b are the rows
+    ``offsets[b]:offsets[b + 1]``, in the order of :class:`LambertSolutions`.
+
+    Attributes
+    ----------
+    v1_m_s, v2_m_s : ndarray, shape (n_solutions, 3)
+        NaN on rows whose iteration failed (``failed``).
+    problem, n_revs, branch, iterations : ndarray of int, shape (n_solutions,)
+    failed : ndarray of bool, shape (n_solutions,)
+    offsets : ndarray of int, shape (batch + 1,)
+    n_max : ndarray of int, shape (batch,)
+    """
+
+    v1_m_s: np.ndarray
+    v2_m_s: np.ndarray
+    problem: np.ndarray
+    n_revs: np.ndarray
+    branch: np.ndarray
+    iterations: np.ndarray
+    failed: np.ndarray
+    offsets: np.ndarray
+    n_max: np.ndarray
+
+
 def _layout(max_revs: int) -> tuple[np.ndarray, np.ndarray]:
     n_sol = 2 * max_revs + 1
     idx = np.arange(n_sol)
@@ -357,37 +402,8 @@ def max_revolutions(r1_m, r2_m, tof_s, mu_m3_s2, *, prograde=True) -> np.ndarray
     return solve_lambert(r1_m, r2_m, tof_s, mu_m3_s2, prograde=prograde, max_revs=0).n_max
 
 
-def solve_lambert(r1_m, r2_m, tof_s, mu_m3_s2, *, prograde=True, max_revs: int = 0,
-                  parallel: bool | None = None) -> LambertSolutions:
-    """Solve a batch of Lambert problems in one compiled call (Izzo 2015).
-
-    Parameters
-    ----------
-    r1_m, r2_m : array_like, shape (3,) or (batch, 3)
-        Departure and arrival positions (m, any consistent length unit).
-    tof_s : float or array_like, shape (batch,)
-        Time of flight (s), > 0.
-    mu_m3_s2 : float or array_like, shape (batch,)
-        Gravitational parameter (m³/s²), > 0.
-    prograde : bool or array_like of bool, shape (batch,)
-        Counter-clockwise about +z (pykep's ``cw=False``); False for clockwise arcs.
-    max_revs : int
-        Largest number of revolutions to return (solutions up to min(N_max, max_revs)).
-    parallel : bool, optional
-        Force the threaded or the serial kernel (default: threaded for large batches).
-
-    Returns
-    -------
-    LambertSolutions
-        Arrays broadcast to the common batch size.
-
-    Raises
-    ------
-    ValueError
-        Non-finite input, tof ≤ 0, μ ≤ 0, a zero position, r1 and r2 collinear (0° or 180°
-        apart: the plane of the arc is undefined), max_revs < 0, or shapes that do not
-        broadcast.
-    """
+def _prepare(r1_m, r2_m, tof_s, mu_m3_s2, prograde, max_revs):
+    """Validate and broadcast the input of :func:`solve_lambert` (see its Raises)."""
     if isinstance(max_revs, bool) or int(max_revs) != max_revs or max_revs < 0:
         raise ValueError(f"max_revs = {max_revs!r} must be an integer >= 0")
     max_revs = int(max_revs)
@@ -442,6 +458,42 @@ def solve_lambert(r1_m, r2_m, tof_s, mu_m3_s2, *, prograde=True, max_revs: int =
             f"(transfer angle {math.degrees(math.acos(max(-1.0, min(1.0, cosang)))):.6g}°; "
             f"{int(col.sum())} problem(s) affected): the plane of the arc is undefined; the "
             f"angle must differ from 0° and 180° (|r̂1 × r̂2| >= {COLLINEAR_SIN_TOL:g})")
+    return r1, r2, tof, mu, cw, n, max_revs
+
+
+def solve_lambert(r1_m, r2_m, tof_s, mu_m3_s2, *, prograde=True, max_revs: int = 0,
+                  parallel: bool | None = None) -> LambertSolutions:
+    """Solve a batch of Lambert problems in one compiled call (Izzo 2015).
+
+    Parameters
+    ----------
+    r1_m, r2_m : array_like, shape (3,) or (batch, 3)
+        Departure and arrival positions (m, any consistent length unit).
+    tof_s : float or array_like, shape (batch,)
+        Time of flight (s), > 0.
+    mu_m3_s2 : float or array_like, shape (batch,)
+        Gravitational parameter (m³/s²), > 0.
+    prograde : bool or array_like of bool, shape (batch,)
+        Counter-clockwise about +z (pykep's ``cw=False``); False for clockwise arcs.
+    max_revs : int
+        Largest number of revolutions to return (solutions up to min(N_max, max_revs)).
+    parallel : bool, optional
+        Force the threaded or the serial kernel (default: threaded for large batches).
+
+    Returns
+    -------
+    LambertSolutions
+        Arrays broadcast to the common batch size.
+
+    Raises
+    ------
+    ValueError
+        Non-finite input, tof ≤ 0, μ ≤ 0, a zero position, r1 and r2 collinear (0° or 180°
+        apart: the plane of the arc is undefined), max_revs < 0, or shapes that do not
+        broadcast.
+    """
+    r1, r2, tof, mu, cw, n, max_revs = _prepare(r1_m, r2_m, tof_s, mu_m3_s2, prograde,
+                                                max_revs)
     n_max = np.empty(n, dtype=np.int64)
     _nmax_batch(r1, r2, tof, mu, cw, n_max)
     n_use = np.minimum(n_max, max_revs)
@@ -459,6 +511,38 @@ def solve_lambert(r1_m, r2_m, tof_s, mu_m3_s2, *, prograde=True, max_revs: int =
     n_revs, branch = _layout(n_rows // 2)
     exists = n_revs[None, :] <= n_use[:, None]
     return LambertSolutions(v1, v2, ok, exists & ~ok, iters, n_max, n_revs, branch)
+
+
+def solve_lambert_flat(r1_m, r2_m, tof_s, mu_m3_s2, *, prograde=True, max_revs: int = 0,
+                       parallel: bool | None = None) -> LambertFlatSolutions:
+    """:func:`solve_lambert` with one output row per existing solution (no NaN padding).
+
+    The same solver and the same input contract; memory and time scale with the number of
+    solutions instead of batch × (2·max N + 1), which matters for multi-revolution batches
+    whose problems have very different N_max (the kep3 protocol: 1 to 20).
+    """
+    r1, r2, tof, mu, cw, n, max_revs = _prepare(r1_m, r2_m, tof_s, mu_m3_s2, prograde,
+                                                max_revs)
+    n_max = np.empty(n, dtype=np.int64)
+    _nmax_batch(r1, r2, tof, mu, cw, n_max)
+    n_use = np.minimum(n_max, max_revs)
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(2 * n_use + 1, out=offsets[1:])
+    m = int(offsets[-1])
+    v1 = np.empty((m, 3))
+    v2 = np.empty((m, 3))
+    iters = np.empty(m, dtype=np.int64)
+    ok = np.empty(m, dtype=np.bool_)
+    if parallel is None:
+        parallel = (n >= _PARALLEL_MIN_BATCH and m > n
+                    and numba.config.NUMBA_NUM_THREADS > 1)
+    (_flat_parallel if parallel else _flat_serial)(r1, r2, tof, mu, cw, n_use, offsets, v1, v2,
+                                                   iters, ok)
+    problem = np.repeat(np.arange(n), 2 * n_use + 1)
+    j = np.arange(m) - offsets[problem]
+    return LambertFlatSolutions(v1, v2, problem, (j + 1) // 2,
+                                np.where(j == 0, 0, np.where(j % 2 == 1, -1, 1)), iters, ~ok,
+                                offsets, n_max)
 
 
 def planar_polar_state(r_m, v_m_s) -> np.ndarray:

@@ -263,3 +263,17 @@ def test_batch_layout_and_serial_parallel_agree():
     assert list(a.n_revs[:5]) == [0, 1, 1, 2, 2] and list(a.branch[:3]) == [0, -1, 1]
     assert np.all(a.valid == (a.n_revs[None, :] <= np.minimum(a.n_max, 4)[:, None]))
     assert a.v1_m_s.shape == (300, 9, 3)
+
+
+def test_flat_layout_equals_the_dense_one():
+    from lunar_env.lambert import solve_lambert_flat
+
+    r1, r2, tof, mu, cw = _kep3_protocol(500, seed=9)
+    d = solve_lambert(r1, r2, tof, mu, prograde=~cw, max_revs=20)
+    f = solve_lambert_flat(r1, r2, tof, mu, prograde=~cw, max_revs=20)
+    assert f.v1_m_s.shape[0] == d.valid.sum() and not f.failed.any()
+    np.testing.assert_array_equal(f.v1_m_s, d.v1_m_s[f.problem, f.n_revs * 2 - (f.branch < 0)])
+    np.testing.assert_array_equal(f.v2_m_s, d.v2_m_s[d.valid])
+    np.testing.assert_array_equal(f.n_revs, np.broadcast_to(d.n_revs, d.valid.shape)[d.valid])
+    np.testing.assert_array_equal(f.branch, np.broadcast_to(d.branch, d.valid.shape)[d.valid])
+    np.testing.assert_array_equal(np.diff(f.offsets), d.valid.sum(1))

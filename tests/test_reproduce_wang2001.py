@@ -32,6 +32,12 @@ def test_quick_reproduction(tmp_path):
     assert by[("interception", 0.003)]["verdict"] == "reproduced"
     # a printed value below anything physically possible is refuted, with the evidence
     assert by[("interception", 3e-5)]["verdict"].startswith("J refuted")
+    assert by[("interception", 3e-5)]["k0_minimum_dv"] > 9.026
+    # a printed value that is another K's: Table 1's first J is J(T) with K = 3e-5
+    assert by[("transfer", 0.0003)]["checks"]["cost_matches_other_k"]["k"] == 3e-5
+    # with T below the one-revolution arcs the EA finds every certified optimum
+    for r in rows:
+        assert min(r["ea_80_single_rev_bounds"]["cost"]) >= r["certified"]["cost"] - 1e-9
     assert len(d["measured"]["plots"]) == 3
     for path in d["measured"]["plots"]:
         assert (tmp_path / "plots").as_posix() in path

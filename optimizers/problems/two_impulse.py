@@ -173,6 +173,23 @@ class TwoImpulseProblem(Problem):
             cost = cost + np.linalg.norm(dv2, axis=-1)
         return {"v1p": v1p, "v2p": v2p, "dv1": dv1, "dv2": dv2, "cost": cost}
 
+    def min_time_for_revolutions(self, n_revs: int = 1) -> float:
+        """Shortest T (s) at which an arc with ``n_revs`` full revolutions exists in some
+        admissible sense (bisection on the existence of the N-revolution solutions; inf when
+        none exists below the upper bound)."""
+        lo, hi = 1e-6, self.time_bounds_s[1]
+
+        def exists(t):
+            return any(solve_lambert(self.r1, self.r2, t, self.mu, prograde=p).n_max[0]
+                       >= n_revs for p in self._senses)
+
+        if not exists(hi):
+            return math.inf
+        for _ in range(80):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if exists(mid) else (mid, hi)
+        return hi
+
     def branch_costs(self, t_s) -> np.ndarray:
         """Cost J (m/s) of each branch at each T, shape (n, n_branch); NaN where none."""
         return self.arcs(t_s)["cost"]
