@@ -33,8 +33,9 @@ Pipeline
    (``replay_fuel_gap_kg``). ``certified`` = solver success, terminal speed and radius errors
    below ``tol_speed_m_s`` / ``tol_radius_m`` and the env replay a success.
 
-Parallel, progress, resume: the rows are split into shards of ``shard_size``; shards run in a
-process pool (``--workers``), each written atomically to ``<out>.shards/shard_<k>.npz``.
+Parallel, progress, resume: the rows are split into shards of ``shard_size``; shards are tasks
+of :mod:`optimizers.common.executor` (a local process pool of ``--workers``, or a Ray cluster
+with ``--address`` / ``RAY_ADDRESS``), each written atomically to ``<out>.shards/shard_<k>.npz``.
 A re-run with the same arguments skips finished shards (an interrupted run loses at most the
 shards in flight); the meta of the shard directory must match or the run refuses to mix data.
 The finished shards are merged into ``<out>``.
@@ -315,7 +316,8 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
              env_kwargs: dict[str, Any] | None = None, n: int = 1000, seed: int = 0,
              n_workers: int = 2, shard_size: int = 50, n_steps: int = 400,
              check: str = "doubling", tol_radius_m: float = 1e-3, tol_speed_m_s: float = 1e-3,
-             progress: bool = True, max_shards: int | None = None) -> ImitationDataset | None:
+             progress: bool = True, max_shards: int | None = None,
+             executor=None) -> ImitationDataset | None:
     """Generate (or resume) a dataset; returns it once every shard is done.
 
     Parameters
@@ -338,6 +340,10 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         Certification tolerances on the solver's terminal errors.
     max_shards : int, optional
         Stop after this many new shards (simulates an interruption; returns None).
+    executor : optimizers.common.executor.Executor, optional
+        Runs the shards (e.g. a Ray cluster: ``--address``); overrides ``n_workers``. The
+        caller keeps ownership. Each shard is a task keyed (scenario, seed, shard index),
+        written atomically as it finishes.
 
     Raises
     ------
@@ -410,26 +416,26 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         if bar is not None:
             bar.update(len(job["rows"]))
 
-    try:
-        if int(n_workers) == 1 or len(jobs) <= 1:
-            for job in jobs:
-                _store(job, _shard_work(job))
-        else:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor, as_completed
+    from optimizers.common.executor import LocalExecutor, Task, TaskKey, run_tasks
 
-            with ProcessPoolExecutor(max_workers=int(n_workers),
-                                     mp_context=mp.get_context("spawn")) as pool:
-                futs = {pool.submit(_shard_work, job): job for job in jobs}
-                for fut in as_completed(futs):
-                    _store(futs[fut], fut.result())
+    tasks = [Task(TaskKey(f"dataset-{sc.name}", int(seed), job["k"]), _shard_work, (job,))
+             for job in jobs]
+    by_k = {job["k"]: job for job in jobs}
+    ex = executor
+    if ex is None:
+        ex = LocalExecutor(0 if int(n_workers) == 1 or len(jobs) <= 1 else int(n_workers))
+    try:
+        run_tasks(tasks, ex, on_result=lambda task, res: _store(by_k[task.key.index], res))
     finally:
+        if executor is None:
+            ex.close()
         if bar is not None:
             bar.close()
     wall_this = time.perf_counter() - t0
     timing_file = shard_dir / "timing.json"
     timing = json.loads(timing_file.read_text()) if timing_file.exists() else []
-    timing.append({"new_shards": len(jobs), "wall_s": wall_this, "n_workers": int(n_workers)})
+    timing.append({"new_shards": len(jobs), "wall_s": wall_this,
+                   "n_workers": int(ex.n_workers), "executor": ex.describe()})
     timing_file.write_text(json.dumps(timing))
     if not all(_shard_path(shard_dir, k).exists() for k in range(n_shards)):
         return None
@@ -458,6 +464,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0, help="seed of the initial-state draw")
     p.add_argument("--out", default=DEFAULT_OUT)
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--address", default=None,
+                   help="Ray cluster for the shards ('auto', 'host:port', 'local'); default "
+                        "$RAY_ADDRESS, else --workers local processes")
     p.add_argument("--shard-size", type=int, default=50)
     p.add_argument("--n-steps", type=int, default=400, help="solver RK4 grid")
     p.add_argument("--check", default="doubling", choices=("grid", "doubling", "reference"))
@@ -471,10 +480,19 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--env-kwargs {item!r}: expected KEY=VALUE")
         k, v = item.split("=", 1)
         env_kwargs[k] = yaml.safe_load(v)
-    ds = generate(args.out, env_id=args.env, env_kwargs=env_kwargs, n=args.n, seed=args.seed,
-                  n_workers=args.workers, shard_size=args.shard_size, n_steps=args.n_steps,
-                  check=args.check, tol_radius_m=args.tol_radius_m,
-                  tol_speed_m_s=args.tol_speed_m_s, progress=not args.no_progress)
+    from optimizers.common.executor import RAY_ADDRESS_ENV, get_executor
+
+    executor = (get_executor(args.address, args.workers)
+                if args.address or os.environ.get(RAY_ADDRESS_ENV) else None)
+    try:
+        ds = generate(args.out, env_id=args.env, env_kwargs=env_kwargs, n=args.n,
+                      seed=args.seed, n_workers=args.workers, shard_size=args.shard_size,
+                      n_steps=args.n_steps, check=args.check, tol_radius_m=args.tol_radius_m,
+                      tol_speed_m_s=args.tol_speed_m_s, progress=not args.no_progress,
+                      executor=executor)
+    finally:
+        if executor is not None:
+            executor.close()
     assert ds is not None
     print(json.dumps(ds.summary(), indent=1))
     print(f"Written: {args.out}")

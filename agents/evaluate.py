@@ -305,8 +305,11 @@ def rollout(env_id: str, policy: Policy, n: int, seed: int,
 # ----------------------------------------------------------------------------- optimum
 
 
-def optimal_solutions(scenario, states_nd: np.ndarray, progress: bool = True):
+def optimal_solutions(scenario, states_nd: np.ndarray, progress: bool = True, executor=None):
     """Per-case minimum-fuel solutions (Pontryagin) from normalised planar initial states.
+
+    ``executor`` (:mod:`optimizers.common.executor`, e.g. a Ray cluster) solves chunks of the
+    warm-start chain in parallel; default: this process.
 
     Returns
     -------
@@ -319,7 +322,7 @@ def optimal_solutions(scenario, states_nd: np.ndarray, progress: bool = True):
 
     states_si = planar_state_si(scenario, states_nd)
     t0 = time.perf_counter()
-    sols = solve_many(scenario, states_si, progress=progress)
+    sols = solve_many(scenario, states_si, progress=progress, executor=executor)
     wall = time.perf_counter() - t0
     fuel = np.array([s.fuel_kg if s.success else np.nan for s in sols], dtype=np.float64)
     return fuel, list(sols), wall
@@ -378,8 +381,11 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
             seed: int = DEFAULT_SEED, env_kwargs: dict[str, Any] | None = None,
             open_loop: bool = True, n_expert_states: int = DEFAULT_EXPERT_STATES,
             trace_cases: int = 3, progress: bool = True,
-            optimum_workers: int = 1) -> dict[str, Any]:
+            optimum_workers: int = 1, optimum_executor=None) -> dict[str, Any]:
     """Run ``policies`` and the optimiser baselines over one case set; return the report dict.
+
+    ``optimum_executor`` (:mod:`optimizers.common.executor`) runs the planar per-case optima
+    (default: this process); the pinpoint optima use ``optimum_workers`` processes.
 
     Keys: ``env_id``, ``seed``, ``n_states``, ``rows`` (one summary per policy, see the module
     docstring), ``optimum`` (per-case optimal fuel summary and solver wall time), ``results``
@@ -400,7 +406,8 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
     if planar:
         if progress:
             print(f"Solving {n_states} per-case optimal controls (Pontryagin)...", flush=True)
-        opt_fuel, sols, wall = optimal_solutions(scenario, states, progress=progress)
+        opt_fuel, sols, wall = optimal_solutions(scenario, states, progress=progress,
+                                                 executor=optimum_executor)
         opt_info = {"solver": "optimizers.pontryagin.solve_many",
                     "converged": int(np.isfinite(opt_fuel).sum()),
                     "fuel_mean_kg": float(np.nanmean(opt_fuel)), "wall_s": wall}
@@ -645,7 +652,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--torch-threads", type=int, default=1,
                    help="torch threads for SB3 inference (default 1, as in training)")
     p.add_argument("--optimum-workers", type=int, default=1,
-                   help="processes for the pinpoint per-case optimum (cached on disk)")
+                   help="processes for the per-case optimum (pinpoint: cached on disk)")
+    p.add_argument("--address", default=None,
+                   help="Ray cluster for the planar per-case optima ('auto', 'host:port', "
+                        "'local'); default $RAY_ADDRESS, else --optimum-workers local processes")
     args = p.parse_args(argv)
     import torch
 
@@ -668,10 +678,21 @@ def main(argv: list[str] | None = None) -> int:
         if len(args.model) > 1:
             policies[-1].name = f"{policies[-1].name} ({run_dir.name})"
     env_id = env_id or DEFAULT_ENV_ID
-    report = compare(env_id, policies, n_states=args.n_states, seed=args.seed,
-                     env_kwargs=env_kwargs, open_loop=not args.no_open_loop,
-                     n_expert_states=args.expert_states, trace_cases=args.trace_cases,
-                     optimum_workers=args.optimum_workers)
+    import os
+
+    from optimizers.common.executor import RAY_ADDRESS_ENV, get_executor
+
+    executor = None
+    if args.address or os.environ.get(RAY_ADDRESS_ENV) or args.optimum_workers > 1:
+        executor = get_executor(args.address, args.optimum_workers)
+    try:
+        report = compare(env_id, policies, n_states=args.n_states, seed=args.seed,
+                         env_kwargs=env_kwargs, open_loop=not args.no_open_loop,
+                         n_expert_states=args.expert_states, trace_cases=args.trace_cases,
+                         optimum_workers=args.optimum_workers, optimum_executor=executor)
+    finally:
+        if executor is not None:
+            executor.close()
     publish_report(report, args.out or Path("results") / "evaluate", args.json)
     return 0
 

@@ -226,3 +226,20 @@ def test_ray_cluster_study_with_a_killed_worker(ray_cluster, tmp_path, monkeypat
             run_tasks([Task(TaskKey("p", 0, 0), pt.spin, ("x",))], ex)
     finally:
         ex.close()
+
+
+def test_solve_many_on_an_executor_matches_serial():
+    """The per-case optima (agents.evaluate, agents.dataset) through the executor: chunks of the
+    warm-start chain as keyed tasks give the serial chain's optima."""
+    import numpy as np
+
+    from lunar_env import get_scenario
+    from optimizers.indirect.batch import solve_many
+
+    sc = get_scenario("zhu2007")
+    states = sc.sample_initial(np.random.default_rng(5), 4)
+    serial = solve_many(sc, states, progress=False)
+    chunked = solve_many(sc, states, progress=False, executor=LocalExecutor(0), chunk_size=2)
+    for a, b in zip(serial, chunked, strict=True):
+        assert a.success and b.success
+        assert abs(a.fuel_kg - b.fuel_kg) < 1e-6 * a.fuel_kg

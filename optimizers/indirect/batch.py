@@ -2,7 +2,8 @@
 
 :func:`solve_many` orders the initial states by :func:`nearest_neighbour_order` and solves each
 from its neighbour's extremal (:func:`optimizers.indirect.planar.solve_planar_min_fuel`), in
-this process or a spawned process pool over chunks of the chain.
+this process or on an executor (:mod:`optimizers.common.executor`: a spawned local pool, or
+Ray) over chunks of the chain.
 """
 
 from __future__ import annotations
@@ -69,6 +70,7 @@ def solve_many(
     initial_states_si,
     *,
     n_workers: int = 1,
+    executor=None,
     progress: bool = True,
     chunk_size: int = 50,
     n_steps: int = 400,
@@ -92,6 +94,9 @@ def solve_many(
         CasADi functions once, ~0.5 s) over contiguous chunks of the chain. Spawned workers
         re-import the main module: in a script, call from under ``if __name__ == "__main__":``.
         On a busy 2-core machine one worker is usually as fast.
+    executor : optimizers.common.executor.Executor, optional
+        Run the chunks on this executor instead (a Ray cluster, a shared local pool); the
+        caller keeps ownership (it is not closed here). Overrides ``n_workers``.
     progress : bool
         Show a tqdm progress bar.
     chunk_size : int
@@ -129,7 +134,7 @@ def solve_many(
 
         bar = tqdm(total=n, desc=f"Pontryagin {scenario.name}", unit="state")
     try:
-        if n_workers == 1:
+        if n_workers == 1 and executor is None:
             g = start
             for idx in order:
                 sol = solve_planar_min_fuel(scenario, states[idx], guess=g, **kwargs)
@@ -139,20 +144,25 @@ def solve_many(
                 if bar is not None:
                     bar.update(1)
         else:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor, as_completed
+            from ..common.executor import LocalExecutor, Task, TaskKey, run_tasks
 
             chunks = [order[i:i + int(chunk_size)] for i in range(0, n, int(chunk_size))]
-            ctx = mp.get_context("spawn")
-            with ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx) as pool:
-                futs = {pool.submit(_solve_chain, scenario, states[c], start, kwargs): c
-                        for c in chunks}
-                for fut in as_completed(futs):
-                    c = futs[fut]
-                    for idx, sol in zip(c, fut.result(), strict=True):
-                        results[idx] = sol
-                    if bar is not None:
-                        bar.update(len(c))
+            tasks = [Task(TaskKey(f"pontryagin-{scenario.name}", 0, k), _solve_chain,
+                          (scenario, states[c], start, kwargs)) for k, c in enumerate(chunks)]
+
+            def _collect(task, sols):
+                c = chunks[task.key.index]
+                for idx, sol in zip(c, sols, strict=True):
+                    results[idx] = sol
+                if bar is not None:
+                    bar.update(len(c))
+
+            ex = executor if executor is not None else LocalExecutor(n_workers)
+            try:
+                run_tasks(tasks, ex, on_result=_collect)
+            finally:
+                if executor is None:
+                    ex.close()
     finally:
         if bar is not None:
             bar.close()
