@@ -9,4 +9,5 @@ SCENARIOS = {
     "zhu2007": "optimizers.reproduce.zhu2007",
     "peng2012": "optimizers.reproduce.peng2012",
     "wang2001": "optimizers.reproduce.wang2001",
+    "peng_mars": "optimizers.reproduce.peng_mars",
 }
