@@ -23,10 +23,11 @@ The gap between GAIA's propellant and the indirect optimum, split into its parts
 Per run: fuel, its gap to (1) and to (2), the problem's verdict (arrived on Mars' orbit within
 1e5 km and 10 m/s, :class:`~optimizers.problems.low_thrust.LowThrustTransferProblem`), and the
 generation from which the best affinity (and the best individual's fuel) stays within 0.1 % of
-its final value. Unless ``--quick``: GAIA under the three readings of the illegible penalty
-curve (``--reading-runs`` runs each). Plots in ``--out`` (default ``results/peng_mars``):
-thrust angle (GAIA, parameterisation optimum, indirect), trajectory in the ecliptic plane,
-best affinity per generation (GAIA, AGA).
+its final value ("converged"), and within 1 % ("near the optimum"; the paper gives no
+number). Unless ``--quick``: GAIA under the three readings of the illegible penalty curve
+(``--reading-runs`` runs each). Plots in ``--out`` (default ``results/peng_mars``): thrust
+angle (GAIA, parameterisation optimum, indirect), trajectory in the ecliptic plane, best
+affinity per generation (GAIA, AGA).
 """
 
 from __future__ import annotations
@@ -64,6 +65,7 @@ PUBLISHED = {
 
 AGA_EQUAL = "AGA (GAIA's budget)"
 SETTLE_TOL = 1e-3  # "within 0.1 % of its final value"
+NEAR_TOL = 1e-2  # "near the optimum": within 1 % of the final value (the paper gives no number)
 
 
 def solve_parameterisation_slsqp(problem: LowThrustTransferProblem, x0: np.ndarray,
@@ -132,6 +134,8 @@ def _run_stats(name, runs, opt, par_opt):
     ok = np.array([r.success for r in runs])
     settle_f = [settle_generation(r.extra["history_fitness"]) for r in runs]
     settle_m = [settle_generation(r.extra["history_fuel_kg"]) for r in runs]
+    near_f = [settle_generation(r.extra["history_fitness"], NEAR_TOL) for r in runs]
+    near_m = [settle_generation(r.extra["history_fuel_kg"], NEAR_TOL) for r in runs]
     out = {
         "algorithm": name, "n_runs": len(runs), "n_success": int(ok.sum()),
         "success_rate": float(ok.mean()),
@@ -142,6 +146,12 @@ def _run_stats(name, runs, opt, par_opt):
         "speed_error_m_s": [r.terminal_errors["speed_m_s"] for r in runs],
         "settle_generation_affinity": settle_f,
         "settle_generation_fuel": settle_m,
+        "near_generation_affinity": near_f,
+        "near_generation_fuel": near_m,
+        "history_best_affinity": [np.asarray(r.extra["history_fitness"]).tolist()
+                                  for r in runs],
+        "history_best_fuel_kg": [np.asarray(r.extra["history_fuel_kg"]).tolist()
+                                 for r in runs],
         "n_fevals": [r.n_fevals for r in runs],
         "wall_s": [r.wall_s for r in runs],
     }
@@ -160,7 +170,9 @@ def _print_stats(s):
           f"{np.max(s['fuel_kg']):.3f})  gap {gap.mean():+.2f} % "
           f"[{gap.min():+.2f}, {gap.max():+.2f}]  settle (affinity) median "
           f"{int(np.median(s['settle_generation_affinity']))}, (fuel) median "
-          f"{int(np.median(s['settle_generation_fuel']))}  evals {s['n_fevals'][0]}  "
+          f"{int(np.median(s['settle_generation_fuel']))}; within 1 %: "
+          f"{int(np.median(s['near_generation_affinity']))}, "
+          f"{int(np.median(s['near_generation_fuel']))}  evals {s['n_fevals'][0]}  "
           f"{np.mean(s['wall_s']):.1f} s/run")
 
 
@@ -301,9 +313,11 @@ def main(argv: list[str] | None = None) -> int:
              f"parameterisation {100 * (par_opt - opt) / opt:+.2f} %, search "
              f"{g.get('mean_gap_success_pct', math.nan) - 100 * (par_opt - opt) / opt:+.2f} %"),
             ("near optimum by generation", "10",
-             f"median {int(np.median(g['settle_generation_fuel']))} (fuel within 0.1 %)"),
+             f"median {int(np.median(g['near_generation_affinity']))} (affinity within 1 %), "
+             f"{int(np.median(g['near_generation_fuel']))} (fuel within 1 %)"),
             ("converged by generation", "40",
-             f"median {int(np.median(g['settle_generation_affinity']))} (affinity within 0.1 %)"),
+             f"median {int(np.median(g['settle_generation_affinity']))} (affinity within "
+             f"0.1 %), {int(np.median(g['settle_generation_fuel']))} (fuel within 0.1 %)"),
             ("AGA less reliable", "yes",
              f"AGA {stats['AGA (paper settings)']['n_success']}/{n_runs} arrived (paper "
              f"settings), {stats[AGA_EQUAL]['n_success']}/{n_runs} (GAIA's budget); GAIA "
