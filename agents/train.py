@@ -8,6 +8,7 @@
     python train.py --algo sac --env LunarPinpointLanding-v0 --seed 3
     python train.py -n 200000 --hyperparams n_steps=512 policy_kwargs.activation_fn=relu
     python train.py --resume runs/ppo/LunarSoftLanding-v0_1   # continue an interrupted run
+    python train.py --optimize --n-trials 40 -n 500000         # Optuna search (agents.optimize)
 
 Layout follows the RL Baselines3 Zoo: hyperparameters come from ``agents/hyperparams/<algo>.yml``
 keyed by env id (``--config quick`` / ``--quick`` selects the ``<env id>@quick`` profile), and
@@ -129,6 +130,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--summary-every", type=int, default=None, metavar="STEPS",
                    help="env steps between console summary lines (default n_timesteps/20; "
                         "0: none)")
+    o = p.add_argument_group("hyperparameter search (Optuna on the executor; agents.optimize)")
+    o.add_argument("--optimize", "--optimize-hyperparameters", "-optimize", action="store_true",
+                   help="search PPO hyperparameters instead of training once; writes the best "
+                        "as a YAML entry (<log-folder>/optimize/<env>_<k>/best.yml)")
+    o.add_argument("--n-trials", type=int, default=20, help="trials (default 20)")
+    o.add_argument("--sampler", default="tpe", choices=("tpe", "random"))
+    o.add_argument("--pruner", default="median", choices=("median", "halving", "none"))
+    o.add_argument("--n-startup-trials", type=int, default=5,
+                   help="random trials before TPE, and trials before the pruner acts")
+    o.add_argument("--n-evaluations", type=int, default=5,
+                   help="evaluations (pruning points) per trial")
+    o.add_argument("--tune-states", type=int, default=64,
+                   help="dispersed initial states each evaluation flies")
+    o.add_argument("--storage", default=None,
+                   help="Optuna storage: RDB URL or journal file (default <out>/study.journal)")
+    o.add_argument("--study-name", default=None)
+    o.add_argument("--address", default=None,
+                   help="Ray cluster for the trials ('auto', 'host:port', 'local'); default "
+                        "$RAY_ADDRESS, else a local process pool")
+    o.add_argument("--workers", type=int, default=None,
+                   help="local processes for the trials (default: all cores)")
     return p
 
 
@@ -586,6 +608,21 @@ def main(argv: list[str] | None = None) -> int:
         write_text_atomic(run_dir / "command.txt",
                           command + shlex.join([sys.executable, *sys.argv]) + "\n")
         resume = True
+    elif args.optimize:
+        from agents.optimize import optimize
+
+        hp, run = _resolve_args(args)
+        try:
+            optimize(hp, run, n_trials=args.n_trials, sampler=args.sampler, pruner=args.pruner,
+                     n_startup_trials=args.n_startup_trials, n_evaluations=args.n_evaluations,
+                     eval_states=args.tune_states, storage=args.storage,
+                     study_name=args.study_name, out_dir=args.run_dir, address=args.address,
+                     workers=args.workers, progress=not args.no_progress)
+        except KeyboardInterrupt:
+            print("\nInterrupted; rerun the same command (with --run-dir of this search) to "
+                  "continue: finished trials are kept.", file=sys.stderr)
+            return 130
+        return 0
     else:
         hp, run = _resolve_args(args)
         if args.run_dir:

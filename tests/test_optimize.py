@@ -1,0 +1,51 @@
+"""train.py --optimize: Optuna trials on the executor, resumable, best entry written as YAML."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("optuna")
+
+from agents.hyperparams import load_hyperparams  # noqa: E402
+from agents.optimize import score  # noqa: E402
+from agents.train import main  # noqa: E402
+
+
+def test_score_orders_landings_fuel_and_crashes():
+    land = np.array([True, True, False, False])
+    assert score(land, np.array([280.0, 282.0, 0, 0]), np.array([1, 1, 50.0, 50.0])) == \
+        pytest.approx(0.5 - 0.281 - 0.5 * 0.05)
+    # more landings beat less fuel; softer crashes beat harder ones; no landing at all is < 0
+    assert score(np.ones(4, bool), np.full(4, 290.0), np.ones(4)) > score(land, np.full(4, 270.0),
+                                                                        np.ones(4))
+    none = np.zeros(4, bool)
+    assert score(none, np.zeros(4), np.full(4, 10.0)) > score(none, np.zeros(4),
+                                                             np.full(4, 900.0))
+    assert score(none, np.zeros(4), np.full(4, np.nan)) == pytest.approx(-1.0)
+
+
+def test_optimize_quick_writes_best_entry_and_resumes(tmp_path, capsys):
+    out = tmp_path / "search"
+    argv = ["--optimize", "--quick", "-n", "1024", "--n-trials", "2", "--n-evaluations", "2",
+            "--tune-states", "4", "--workers", "0", "--run-dir", str(out), "--no-progress",
+            "--seed", "3", "--n-startup-trials", "1"]
+    assert main(argv) == 0
+    best = load_hyperparams(out / "best.yml", "LunarSoftLanding-v0")
+    assert best["n_timesteps"] == 1024 and best["n_steps"] in (64, 128, 256, 512)
+    assert best["policy_kwargs"]["activation_fn"] in ("tanh", "relu")
+    assert "curriculum" in best  # the base entry's run keys are kept
+    table = (out / "trials.md").read_text()
+    assert table.count("COMPLETE") + table.count("PRUNED") == 2
+    import optuna
+
+    from agents.optimize import make_storage
+
+    study = optuna.load_study(study_name="LunarSoftLanding-v0-ppo",
+                              storage=make_storage(str(out / "study.journal")))
+    assert len(study.trials) == 2
+    capsys.readouterr()
+    assert main(argv) == 0  # rerun: both trials are stored, nothing is trained again
+    assert len(optuna.load_study(study_name="LunarSoftLanding-v0-ppo",
+                                 storage=make_storage(str(out / "study.journal"))).trials) == 2
+    assert "Trained" not in capsys.readouterr().out
