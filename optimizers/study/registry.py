@@ -19,6 +19,10 @@ __all__ = ["ALGORITHMS", "PROBLEMS", "make_algorithm", "make_problem", "resolve"
 #: name -> ("module:Class", settings of the --quick smoke run)
 ALGORITHMS: dict[str, tuple[str, dict[str, Any]]] = {
     "asaga": ("optimizers.evolutionary.asaga:ASAGA", {"n_generations": 30}),
+    "gaia": ("optimizers.evolutionary.gaia:GAIA", {"n_generations": 10}),
+    "aia": ("optimizers.evolutionary.gaia:AIA", {"n_generations": 10}),
+    "aga": ("optimizers.evolutionary.aga:AGA", {"n_generations": 10}),
+    "ea": ("optimizers.evolutionary.ea:EA", {"n_generations": 10}),
     "pygmo-cmaes": ("optimizers.study.pygmo_algorithms:PygmoCMAES", {"n_generations": 30}),
     "pygmo-sade": ("optimizers.study.pygmo_algorithms:PygmoSADE", {"n_generations": 30}),
     "pygmo-pso": ("optimizers.study.pygmo_algorithms:PygmoPSO", {"n_generations": 30}),
@@ -30,6 +34,11 @@ PROBLEMS: dict[str, tuple[str, dict[str, Any]]] = {
     "zhu2007": ("optimizers.problems.landing:PlanarLandingProblem", {"scenario": "zhu2007"}),
     "zhu2007-si": ("optimizers.problems.landing:PlanarLandingProblem",
                    {"scenario": "zhu2007", "penalty_units": "si"}),
+    # [002] Peng et al. Earth–Mars low-thrust transfer
+    "peng_mars": ("optimizers.problems.low_thrust:LowThrustTransferProblem",
+                  {"scenario": "peng_mars"}),
+    # [004] Wang 2001 two-impulse transfer (K = 1: minimum ΔV)
+    "wang2001": ("optimizers.problems.two_impulse:TwoImpulseProblem", {"k_weight": 1.0}),
 }
 
 
