@@ -245,7 +245,8 @@ def markdown_table(study: dict[str, Any]) -> str:
 
 
 def plot_study(study: dict[str, Any], path: str | Path) -> Path:
-    """Fuel gap against terminal speed error (per run, success marked), and the sorted gaps."""
+    """Fuel gap against terminal speed error, and radius against speed error (per run,
+    successes green)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -263,11 +264,14 @@ def plot_study(study: dict[str, Any], path: str | Path) -> Path:
     a.set_ylabel("fuel − certified optimum (kg)")
     a.axhline(0.0, color="k", lw=0.8)
     a.legend()
-    g = np.sort(gap[ok & np.isfinite(gap)])
-    if g.size:
-        b.plot(g, np.arange(1, g.size + 1) / len(rows), drawstyle="steps-post")
-    b.set_xlabel("fuel gap of successful runs (kg)")
-    b.set_ylabel("fraction of runs")
+    radius = np.array([abs(r["terminal_errors"].get("radius_m", math.nan)) for r in rows])
+    for mask, c in ((ok, "tab:green"), (~ok, "tab:red")):
+        b.scatter(np.maximum(speed[mask], 1e-6), np.maximum(radius[mask], 1e-6), s=14, c=c)
+    b.set_xscale("log")
+    b.set_yscale("log")
+    b.set_xlabel("terminal speed error (m/s)")
+    b.set_ylabel("terminal radius error (m)")
+    b.set_title("why runs fail: terminal errors", fontsize=9)
     ident = study["identity"]
     fig.suptitle(f"{ident['algorithm']} on {ident['problem']}: {len(rows)} runs, "
                  f"{int(ok.sum())} successes")
