@@ -131,17 +131,23 @@ def _free_port() -> int:
 
 
 @pytest.fixture
-def ray_cluster(tmp_path):
+def ray_cluster(tmp_path, monkeypatch):
     """A real Ray head node on 127.0.0.1 (``ray start --block`` in its own session, stopped by
-    signalling that session only), 2 CPUs; yields its address."""
+    signalling that session only), 2 CPUs; yields its address.
+
+    Token authentication is off for this private test cluster, in the head and in the driver
+    alike: with it on, another Ray instance started meanwhile by the same user (a study, a
+    benchmark) can rewrite the shared ``~/.ray/auth_token`` and the driver is refused."""
     pytest.importorskip("ray")
+    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")
     ray_bin = Path(sys.executable).with_name("ray")
     port = _free_port()
     log = open(tmp_path / "ray_start.log", "w")
     proc = subprocess.Popen(
         [str(ray_bin), "start", "--head", "--node-ip-address=127.0.0.1", f"--port={port}",
          "--num-cpus=2", "--include-dashboard=false", "--disable-usage-stats", "--block"],
-        stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
+        env={**os.environ, "RAY_AUTH_MODE": "disabled"})
     try:
         yield f"127.0.0.1:{port}"
     finally:
