@@ -121,6 +121,14 @@ class GAIA(EvolutionaryAlgorithm):
     fraction (one half each, as in the usual textbook AIA); the neighbourhood δ0/g (the
     paper names δ, gives no value); which antibody is the answer (the best affinity of the
     final population under the final weights).
+
+    Measured (``python -m optimizers.reproduce peng_mars``, 10 runs, paper's settings, 105 100
+    evaluations per run): every GAIA run arrives on Mars' orbit (|Δr| ≤ 1.3e6 m, |ΔV| ≤ 0.41
+    m/s) with 252.85–256.82 kg of propellant, 1.31–2.90 % (mean 2.05 %) above the Pontryagin
+    optimum of 249.584 kg; the best the paper's parameterisation can reach is 1.17 % above it
+    (SLSQP), so GAIA's search adds 0.14–1.73 %. Without the guide (AIA) the runs also arrive but
+    at 2.4–7.6 % (mean 5.2 %). The best affinity settles (within 0.1 %) at generation 23
+    (median).
     """
 
     name = "GAIA"

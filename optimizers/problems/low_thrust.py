@@ -41,8 +41,8 @@ Integration: one compiled batched RK4 call (:func:`lunar_env.integrators.integra
 for the whole population, ``n_steps`` = 100 equal steps (≈2.2 days). Measured at the
 parameterisation's optimum against 3200 steps: terminal radius error 1.2e-7 r0 (18 km) and
 velocity errors 1e-7 (3 mm/s); 200 steps: 7.6e-9 r0; fourth-order convergence
-(``tests/test_low_thrust_problem.py`` checks it against DOP853). Four orders below the success
-tolerances.
+(``tests/test_gaia.py::test_rk4_against_dop853`` checks it against DOP853). Four orders below
+the success tolerances.
 """
 
 from __future__ import annotations
