@@ -65,12 +65,15 @@ _TOL_SINGLE = 1e-5  # Householder stop on |Δx| (Izzo 2015): the last step is th
 _TOL_MULTI = 1e-8
 _MAX_ITER = 15
 _PI = math.pi
+# LLVM may contract a*b+c into FMAs, reassociate and use reciprocals; NaN and inf keep their
+# IEEE meaning (no "nnan"/"ninf"): the non-convergence checks rely on math.isfinite.
+_FM = {"contract", "arcp", "reassoc", "nsz"}
 
 STATUS_OK = 0
 STATUS_NOT_CONVERGED = 1
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=_FM)
 def _hypergeometric(z, tol):
     s = 1.0
     cj = 1.0
@@ -85,7 +88,7 @@ def _hypergeometric(z, tol):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def _x2tof_lagrange(x, n, lam):
     a = 1.0 / (1.0 - x * x)
     if a > 0.0:  # ellipse
@@ -102,7 +105,7 @@ def _x2tof_lagrange(x, n, lam):
     return -a * math.sqrt(-a) * ((beta - math.sinh(beta)) - (alfa - math.sinh(alfa))) / 2.0
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def _x2tof(x, n, lam):
     """Non-dimensional time of flight T(x) for N = n revolutions (Izzo 2015, eq. 18–20)."""
     dist = abs(x - 1.0)
@@ -127,7 +130,7 @@ def _x2tof(x, n, lam):
     return (x - lam * z - d / y) / e
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def _dtdx(x, t, lam):
     """First three derivatives of T(x) at (x, T(x)) (Izzo 2015, eq. 22)."""
     l2 = lam * lam
@@ -142,7 +145,7 @@ def _dtdx(x, t, lam):
     return d1, d2, d3
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def _householder(t_target, x0, n, lam, tol, max_iter):
     """Solve T(x) = t_target from x0; returns (x, iterations, converged)."""
     x = x0
@@ -163,7 +166,7 @@ def _householder(t_target, x0, n, lam, tol, max_iter):
     return x, it, err <= tol
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def _max_revs(t, lam):
     """Largest N for which T exceeds the N-revolution minimum time (Halley on dT/dx = 0)."""
     n_max = int(math.floor(t / _PI))
@@ -189,7 +192,7 @@ def _max_revs(t, lam):
     return n_max
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def _geometry(r1, r2, tof, mu, clockwise):
     """Izzo's non-dimensional geometry: (λ, T, r1n, r2n, c, s, ir1, ir2, it1, it2)."""
     r1n = math.sqrt(r1[0] ** 2 + r1[1] ** 2 + r1[2] ** 2)
@@ -224,7 +227,7 @@ def _geometry(r1, r2, tof, mu, clockwise):
     return lam, t, r1n, r2n, c, s, ir1, ir2, it1, it2
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def _solve_one(r1, r2, tof, mu, clockwise, n_use, v1, v2, iters, ok):
     """One problem with n_use (<= its N_max) revolutions at most: fills v1, v2 (n_rows, 3),
     iters and ok (n_rows,); rows beyond 2·n_use + 1, and non-converged rows, are NaN."""
@@ -277,28 +280,28 @@ def _solve_one(r1, r2, tof, mu, clockwise, n_use, v1, v2, iters, ok):
                 v2[j, d] = np.nan
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def _nmax_batch(r1, r2, tof, mu, clockwise, n_max):
     for b in range(r1.shape[0]):
         lam, t = _geometry(r1[b], r2[b], tof[b], mu[b], clockwise[b])[:2]
         n_max[b] = _max_revs(t, lam)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def _batch_serial(r1, r2, tof, mu, clockwise, n_use, v1, v2, iters, ok):
     for b in range(r1.shape[0]):
         _solve_one(r1[b], r2[b], tof[b], mu[b], clockwise[b], n_use[b], v1[b], v2[b], iters[b],
                    ok[b])
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=_FM)
 def _batch_parallel(r1, r2, tof, mu, clockwise, n_use, v1, v2, iters, ok):
     for b in prange(r1.shape[0]):
         _solve_one(r1[b], r2[b], tof[b], mu[b], clockwise[b], n_use[b], v1[b], v2[b], iters[b],
                    ok[b])
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FM)
 def _flat_serial(r1, r2, tof, mu, clockwise, n_use, offsets, v1, v2, iters, ok):
     for b in range(r1.shape[0]):
         lo, hi = offsets[b], offsets[b + 1]
@@ -306,7 +309,7 @@ def _flat_serial(r1, r2, tof, mu, clockwise, n_use, offsets, v1, v2, iters, ok):
                    iters[lo:hi], ok[lo:hi])
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=_FM)
 def _flat_parallel(r1, r2, tof, mu, clockwise, n_use, offsets, v1, v2, iters, ok):
     for b in prange(r1.shape[0]):
         lo, hi = offsets[b], offsets[b + 1]
