@@ -6,12 +6,14 @@ operators (:mod:`.operators`) and penalties (:mod:`.penalties`).
 - :class:`~.ea.EA`: (λ+μ) EA with niching, [004] Wang et al. 2001 (two-impulse transfers).
 - :class:`~.gaia.GAIA` / :class:`~.gaia.AIA`: (guiding) artificial immune algorithm, and
   :class:`~.aga.AGA`, the adaptive GA it is compared with, [002] Peng et al.
+- :class:`~.fga.FGA`: float-coded GA, [003] Wang et al. 2003.
 """
 
 from .aga import AGA
 from .asaga import ASAGA
 from .base import EvolutionaryAlgorithm
 from .ea import EA
+from .fga import FGA
 from .gaia import AIA, GAIA
 
-__all__ = ["ASAGA", "EA", "EvolutionaryAlgorithm", "GAIA", "AIA", "AGA"]
+__all__ = ["ASAGA", "EA", "EvolutionaryAlgorithm", "GAIA", "AIA", "AGA", "FGA"]

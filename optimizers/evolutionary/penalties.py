@@ -20,22 +20,40 @@ __all__ = ["penalised_fitness", "penalty_terms", "paper_penalty_weight",
            "paper_penalty_weights", "PenalisedProblem"]
 
 
+def _plan(problem) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """The problem's penalty groups as column indices of a fitness row and a multiplier
+    ``factor / scale``, built once per problem (the GAs call the penalty every generation)."""
+    groups = problem.penalty_groups()
+    key = (problem.get_nec(), groups)
+    cached = getattr(problem, "_penalty_plan_cache", None)
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    nec = problem.get_nec()
+    plan = [(np.array([1 + i for i in g.eq], dtype=np.intp),
+             np.array([1 + nec + i for i in g.ineq], dtype=np.intp), g.factor / g.scale)
+            for g in groups]
+    try:
+        problem._penalty_plan_cache = (key, plan)
+    except AttributeError:  # a problem that refuses attributes just rebuilds the plan
+        pass
+    return plan
+
+
 def penalty_terms(problem, F: np.ndarray) -> np.ndarray:
     """Scaled, factored constraint terms ``factor_g · term_g / scale_g``, shape (n, n_groups).
 
     Non-finite fitness rows give +inf terms (so such a point is never preferred).
     """
     F = np.atleast_2d(F)
-    nec = problem.get_nec()
-    groups = problem.penalty_groups()
-    out = np.zeros((F.shape[0], len(groups)))
-    for j, g in enumerate(groups):
+    plan = _plan(problem)
+    out = np.zeros((F.shape[0], len(plan)))
+    for j, (eq, ineq, mult) in enumerate(plan):
         t = np.zeros(F.shape[0])
-        if g.eq:
-            t += np.linalg.norm(F[:, [1 + i for i in g.eq]], axis=1)
-        if g.ineq:
-            t += np.maximum(F[:, [1 + nec + i for i in g.ineq]], 0.0).sum(axis=1)
-        out[:, j] = g.factor * t / g.scale
+        if eq.size:
+            t += np.sqrt(np.einsum("ij,ij->i", F[:, eq], F[:, eq]))
+        if ineq.size:
+            t += np.maximum(F[:, ineq], 0.0).sum(axis=1)
+        out[:, j] = mult * t
     return np.where(np.isfinite(out), out, np.inf)
 
 

@@ -6,7 +6,8 @@ from .landing import PenalisedProblem, PlanarLandingProblem
 from .low_thrust import LowThrustTransferProblem
 from .pinpoint import PinpointOCP
 from .planar_ocp import PlanarOCP
+from .thrust_design import ThrustDesignProblem
 from .two_impulse import TwoImpulseProblem
 
 __all__ = ["PlanarLandingProblem", "PenalisedProblem", "PlanarOCP", "PinpointOCP",
-           "TwoImpulseProblem", "LowThrustTransferProblem"]
+           "TwoImpulseProblem", "LowThrustTransferProblem", "ThrustDesignProblem"]
