@@ -10,4 +10,5 @@ SCENARIOS = {
     "peng2012": "optimizers.reproduce.peng2012",
     "wang2001": "optimizers.reproduce.wang2001",
     "peng_mars": "optimizers.reproduce.peng_mars",
+    "wang2003": "optimizers.reproduce.wang2003",
 }
