@@ -16,7 +16,9 @@ the last part of training — and every evaluation — uses the true initial-sta
 Montezuma's Revenge from a single demonstration"). The policy is never shown an optimal action:
 only states to start from.
 
-Only the planar soft-landing env is supported (the Pontryagin solver is planar).
+Soft landing: Pontryagin optima. Pinpoint landing: the env's per-case optimum of
+:mod:`agents.pinpoint_optimum` (serial GPM + direct shooting, cached), its shooting nodes as the
+pool.
 """
 
 from __future__ import annotations
@@ -42,10 +44,24 @@ def optimal_start_pool(scenario, n_trajectories: int, seed: int, n_points: int =
     times_s : ndarray, shape (n_ok, n_points)
         Time since the case's initial state (s).
     """
-    from optimizers.indirect.batch import solve_many
+    from lunar_env.scenarios import PinpointScenario
 
     rng = np.random.default_rng(seed)
     rows = scenario.sample_initial(rng, int(n_trajectories))
+    if isinstance(scenario, PinpointScenario):
+        # 3D pinpoint: the env's per-case optimum (serial GPM + shooting, cached on disk); the
+        # pool points are its shooting nodes (the last, the gate, excluded)
+        from agents.pinpoint_optimum import pinpoint_optima
+
+        s = scenario.scaling()
+        x0 = np.array([scenario.state_nd(r, scaling=s) for r in rows])
+        opts = [o for o in pinpoint_optima(scenario, x0, progress=progress) if o.success]
+        if not opts:
+            raise RuntimeError("no optimal trajectory converged; cannot build the curriculum")
+        return (np.asarray([o.states_nd[:-1] for o in opts]),
+                np.asarray([o.t_nodes_s[:-1] for o in opts]))
+    from optimizers.indirect.batch import solve_many
+
     sols = [s for s in solve_many(scenario, rows, progress=progress) if s.success]
     if not sols:
         raise RuntimeError("no optimal trajectory converged; cannot build the curriculum")
@@ -81,8 +97,6 @@ class OptimalStartCurriculum(VecEnvWrapper):
         if native is None or not hasattr(native, "scenario"):
             raise TypeError("OptimalStartCurriculum wraps the LanderSB3VecEnv of "
                             "agents.vec_env.make_sb3_vec_env directly")
-        if np.asarray(native.state_nd).shape[1] != 5:
-            raise ValueError("OptimalStartCurriculum supports the planar LunarSoftLanding-v0 only")
         if not (0.0 <= start_prob <= 1.0):
             raise ValueError(f"start_prob={start_prob!r} must be in [0, 1]")
         if not (0.0 < anneal_fraction <= 1.0):

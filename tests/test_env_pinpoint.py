@@ -1,4 +1,5 @@
-"""LunarPinpointLanding-v0: Gymnasium contract, step physics, terminal gate and miss distance."""
+"""LunarPinpointLanding-v1 (and v0): Gymnasium contract, step physics, terminal gate, miss distance
+and the reward's ranking."""
 
 import pickle
 
@@ -17,7 +18,7 @@ from lunar_env.envs.pinpoint_landing import (
     angles_from_action,
 )
 
-ENV_ID = "LunarPinpointLanding-v0"
+ENV_ID = "LunarPinpointLanding-v1"
 SUB = 2  # the envs' default substeps
 
 
@@ -198,10 +199,60 @@ def test_optimal_pinpoint_landing_is_landable_and_ranked_best():
         u = pp(np.minimum(ts / t_ref, ssol.tf_nd)[None, :])[0].mean(axis=0)
         return action_from_angles(u[0], u[1]).astype(np.float32)
 
+    def shifted(k, d_alpha_deg):  # the optimal law with α offset: overshoot (+) or undershoot
+        a = optimal(k).astype(np.float64)
+        al, be = angles_from_action(a)
+        return action_from_angles(al + np.radians(d_alpha_deg), be).astype(np.float32)
+
     r_opt = run(optimal)
     rng = np.random.default_rng(0)
-    others = [run(lambda k: action_from_angles(0.0, math.pi).astype(np.float32)),
-              run(lambda k: np.array([1.0, 0.111], np.float32)),
-              run(lambda k: np.array([-1.0, 0.111], np.float32))]
-    others += [run(lambda k: rng.uniform(-1, 1, 2).astype(np.float32)) for _ in range(20)]
-    assert r_opt > max(others)
+    others = {"braking along the track": run(lambda k: action_from_angles(0.0, math.pi
+                                                                          ).astype(np.float32)),
+              "climbing/hovering": run(lambda k: np.array([1.0, 0.111], np.float32)),
+              "diving": run(lambda k: np.array([-1.0, 0.111], np.float32)),
+              "flying past (α + 20°)": run(lambda k: shifted(k, 20.0)),
+              "short (α − 5°)": run(lambda k: shifted(k, -5.0))}
+    rand = [run(lambda k: rng.uniform(-1, 1, 2).astype(np.float32)) for _ in range(20)]
+    others["best of 20 random"] = max(rand)
+    for name, r in others.items():
+        assert r < r_opt, (name, r, r_opt)
+    # v1 (issue 16): diving no longer saves fuel over the other failures: it ranks last
+    assert others["diving"] < min(v for k, v in others.items() if k != "diving")
+
+
+def test_v1_charges_the_propellant_left_on_failure_and_v0_does_not():
+    """Same flight under both ids; only the last reward of a failed episode differs, by the
+    propellant left / capacity. The vector env follows the id's reward too."""
+    acts = np.tile(np.array([-1.0, 0.111], np.float32), (400, 1))  # dive to the gate
+    rewards, infos = {}, {}
+    for env_id in ("LunarPinpointLanding-v0", ENV_ID):
+        env = gym.make(env_id).unwrapped
+        env.reset(seed=3)
+        rs = []
+        for a in acts:
+            _, r, term, trunc, info = env.step(a)
+            rs.append(r)
+            if term or trunc:
+                break
+        rewards[env_id], infos[env_id] = np.array(rs), info
+    r0, r1 = rewards["LunarPinpointLanding-v0"], rewards[ENV_ID]
+    assert len(r0) == len(r1) and not infos[ENV_ID]["is_success"]
+    np.testing.assert_array_equal(r0[:-1], r1[:-1])
+    sc = gym.make(ENV_ID).unwrapped.scenario
+    env = gym.make(ENV_ID).unwrapped
+    env.reset(seed=3)
+    m_start = env.state_nd[-1] * sc.scaling().mass_kg
+    left = m_start - infos[ENV_ID]["fuel_used_kg"] - sc.vehicle.dry_mass_kg
+    cap = sc.vehicle.mass_kg - sc.vehicle.dry_mass_kg
+    assert r1[-1] - r0[-1] == pytest.approx(-left / cap, rel=1e-9)
+    venv = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point")
+    venv.reset(seed=3)
+    total = np.zeros(2)
+    live = np.ones(2, bool)
+    for a in acts:
+        _, r, term, trunc, _ = venv.step(np.tile(a, (2, 1)))
+        total += np.where(live, r, 0.0)
+        live &= ~(term | trunc)
+        if not live.any():
+            break
+    assert total[0] == pytest.approx(r1.sum(), rel=1e-12)

@@ -1,7 +1,8 @@
 """Gymnasium environments; importing :mod:`lunar_env` registers them.
 
 - ``LunarSoftLanding-v0``: :class:`~lunar_env.envs.soft_landing.LunarSoftLandingEnv`
-- ``LunarPinpointLanding-v0``: :class:`~lunar_env.envs.pinpoint_landing.LunarPinpointLandingEnv`
+- ``LunarPinpointLanding-v1``: :class:`~lunar_env.envs.pinpoint_landing.LunarPinpointLandingEnv`
+  (``-v0``: the same env with the pre-issue-16 reward, ``charge_propellant_on_failure=False``)
 
 Both have a native vector env (``gym.make_vec(id, num_envs=N,
 vectorization_mode="vector_entry_point")``).
@@ -12,20 +13,25 @@ from gymnasium.envs.registration import register, registry
 __all__ = ["register_envs"]
 
 _ENVS = {
-    "LunarSoftLanding-v0": ("soft_landing", "LunarSoftLandingEnv", "LunarSoftLandingVectorEnv"),
+    "LunarSoftLanding-v0": ("soft_landing", "LunarSoftLandingEnv", "LunarSoftLandingVectorEnv",
+                            {}),
+    "LunarPinpointLanding-v1": ("pinpoint_landing", "LunarPinpointLandingEnv",
+                                "LunarPinpointLandingVectorEnv", {}),
+    # v0: the reward before issue 16 (no propellant charge for a failed landing)
     "LunarPinpointLanding-v0": ("pinpoint_landing", "LunarPinpointLandingEnv",
-                                "LunarPinpointLandingVectorEnv"),
+                                "LunarPinpointLandingVectorEnv",
+                                {"charge_propellant_on_failure": False}),
 }
 
 
 def register_envs() -> None:
     """Register both ids (idempotent). The episode length is handled by the envs themselves
     (``time_limit_s``), so no ``TimeLimit`` wrapper is added."""
-    for env_id, (mod, cls, vec_cls) in _ENVS.items():
+    for env_id, (mod, cls, vec_cls, kwargs) in _ENVS.items():
         if env_id in registry:
             continue
         register(id=env_id, entry_point=f"lunar_env.envs.{mod}:{cls}",
-                 vector_entry_point=f"lunar_env.envs.{mod}:{vec_cls}")
+                 vector_entry_point=f"lunar_env.envs.{mod}:{vec_cls}", kwargs=dict(kwargs))
 
 
 register_envs()

@@ -207,6 +207,11 @@ class LanderBatch:
             if ms is not None:
                 ok &= ms <= task.success_miss_m
             success[e] = ok
+            if getattr(task, "charge_propellant_on_failure", False) and not ok.all():
+                # pinpoint v1: a failed landing loses the propellant left with the vehicle
+                f = e[~ok]
+                reward[f] -= (y_end[f, -1] - task.dry_mass_nd) * task.mass_ref_kg \
+                    / task.propellant_ref_kg
         return {"reward": reward, "terminated": touchdown, "truncated": truncated,
                 "touchdown_speed_m_s": speed, "miss_distance_m": miss, "is_success": success}
 

@@ -1,4 +1,4 @@
-"""``LunarPinpointLanding-v0``: 3D pinpoint landing on a rotating Moon ([001] Peng et al. 2012).
+"""``LunarPinpointLanding-v1``: 3D pinpoint landing on a rotating Moon ([001] Peng et al. 2012).
 
 Public helpers: :func:`angles_from_action`, :func:`action_from_angles`,
 :class:`LunarPinpointLandingEnv` and :class:`LunarPinpointLandingVectorEnv` (``scenario``,
@@ -92,7 +92,8 @@ class _PinpointTask:
                  substeps: int = 2, time_limit_s: float | None = None,
                  throttle_channel: bool = False, success_speed_m_s: float = 5.0,
                  success_miss_m: float = 500.0, max_fall_s: float | None = None,
-                 cutoff_speed_m_s: float = 20.0) -> None:
+                 cutoff_speed_m_s: float = 20.0, charge_propellant_on_failure: bool = True
+                 ) -> None:
         sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
         if not isinstance(sc, PinpointScenario):
             raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not a pinpoint scenario; "
@@ -102,6 +103,9 @@ class _PinpointTask:
                   success_speed_m_s=success_speed_m_s, cutoff_speed_m_s=cutoff_speed_m_s,
                   success_miss_m=success_miss_m)
         s = self.scaling
+        #: v1 reward: an episode that ends without success is also charged the propellant left
+        #: (see the Rewards section of the manual); False gives v0's reward
+        self.charge_propellant_on_failure = bool(charge_propellant_on_failure)
         self.plane_normal = np.asarray(self.params.plane_normal)
         self.success_miss_m = float(success_miss_m)
         self.surface_radius_nd = 1.0 * float(s.length_nd(sc.body.radius_m))
@@ -276,7 +280,20 @@ _DOC = """
     −log(1 + v/1 m/s) − log(1 + miss/100 m), with v the speed at the terminal gate and miss
     the distance from the target to the gate crossing (for a truncated episode: the
     energy-conservation speed at the gate radius and the distance of the lander's radial
-    projection onto the gate sphere).
+    projection onto the gate sphere). v1: an episode that ends *without success* is also
+    charged the propellant left, −(propellant left)/(capacity): a failed landing loses the
+    vehicle and its propellant with it.
+
+    Why (issue 16): the engine burns at constant thrust, so the fuel term is just −time, and
+    under v0 a lander that ends its episode early by diving to the gate (α at its lower bound,
+    the gate in ~110 s at ~1.5 km/s, 345 km from the target) *saved* 0.75 of return in fuel
+    over any failure that kept flying, about as much as the whole spread of the saturating
+    logarithmic terms between failures (v0 on the nominal start: diving −15.7, braking along
+    the track −14.7, climbing −14.7, random policies −15.0): PPO settled there. With the
+    charge, no failure can be cheaper in fuel than the full tank, and a success is unchanged,
+    so the fuel-optimal landing keeps the best return and diving becomes the worst strategy
+    (ranking in ``tests/test_env_pinpoint.py``). ``charge_propellant_on_failure=False`` gives
+    v0's reward.
 
     ## Starting State
 
@@ -312,14 +329,17 @@ _DOC = """
 
     >>> import gymnasium as gym
     >>> import lunar_env
-    >>> env = gym.make("LunarPinpointLanding-v0")
+    >>> env = gym.make("LunarPinpointLanding-v1")
     >>> obs, info = env.reset(seed=0)
     >>> obs.shape
     (9,)
 
     ## Version History
 
-    - v0: initial version.
+    - v1: an episode that ends without success is charged the propellant left (issue 16; the
+      dynamics, observations, actions and termination are v0's).
+    - v0: initial version (``gym.make("LunarPinpointLanding-v0")`` still gives it:
+      ``charge_propellant_on_failure=False``).
     """
 
 
