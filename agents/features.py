@@ -1,4 +1,6 @@
-"""Derived observation features for the soft-landing policy (agents side; the env is unchanged).
+"""Derived observation features for the landing policies (agents side; the env is unchanged).
+
+Soft landing below; the pinpoint env's features are documented at :func:`_augment_pinpoint`.
 
 Why: ``LunarSoftLanding-v0`` observes altitude / 15 km, radial speed / 169 m/s and horizontal
 speed / 1.69 km/s (:mod:`lunar_env.envs.soft_landing`). Those scales suit the start of the
@@ -51,6 +53,9 @@ __all__ = ["FEATURE_WIDTHS", "augment_observation", "feature_constants", "valida
 #: columns added by each feature name, in the order they are appended
 FEATURE_WIDTHS = {"log_altitude": 1, "fine_velocity": 2, "stopping_ratio": 1,
                   "time_to_go": 2, "fuel_margin": 1}
+#: the same for ``LunarPinpointLanding-v*`` (9 observations; see :func:`_augment_pinpoint`)
+PINPOINT_FEATURE_WIDTHS = {"log_altitude": 1, "fine_range": 3, "fine_velocity": 3,
+                           "stopping_ratio": 1, "time_to_go": 2, "fuel_margin": 1}
 
 
 def validate_features(names: Sequence[str] | None) -> list[str]:
@@ -60,9 +65,10 @@ def validate_features(names: Sequence[str] | None) -> list[str]:
     if isinstance(names, str):
         raise TypeError(f"obs_features={names!r} must be a list of names, not a string")
     out = [str(n) for n in names]
-    bad = [n for n in out if n not in FEATURE_WIDTHS]
+    allowed = set(FEATURE_WIDTHS) | set(PINPOINT_FEATURE_WIDTHS)
+    bad = [n for n in out if n not in allowed]
     if bad:
-        raise ValueError(f"unknown obs_features {bad}; allowed: {sorted(FEATURE_WIDTHS)}")
+        raise ValueError(f"unknown obs_features {bad}; allowed: {sorted(allowed)}")
     if len(set(out)) != len(out):
         raise ValueError(f"obs_features {out} repeats a name")
     return out
@@ -78,14 +84,15 @@ def feature_constants(env) -> dict:
 
     Raises ``TypeError`` for an env that is not the planar soft-landing task.
     """
-    if getattr(env, "has_target", True) or not hasattr(env, "observation_quantities") \
-            or not hasattr(env, "physical_constants"):
-        raise TypeError("observation features are defined for LunarSoftLanding-v0 only")
+    if not hasattr(env, "observation_quantities") or not hasattr(env, "physical_constants"):
+        raise TypeError("observation features are defined for the lunar_env landing envs only")
     try:
         consts: dict = dict(env.physical_constants())
     except TypeError:
-        raise TypeError("observation features are defined for LunarSoftLanding-v0 only") from None
+        raise TypeError("observation features are defined for the lunar_env landing envs "
+                        "only") from None
     consts["decode"] = env.observation_quantities
+    consts["pinpoint"] = bool(getattr(env, "has_target", False))
     return consts
 
 
@@ -110,6 +117,8 @@ def augment_observation(obs: np.ndarray, consts: dict[str, float],
     obs = np.asarray(obs)
     if not names:
         return obs.astype(np.float32, copy=False)
+    if consts.get("pinpoint"):
+        return _augment_pinpoint(obs, consts, names)
     if obs.ndim != 2 or obs.shape[1] != 5:
         raise ValueError(f"obs shape {obs.shape}: expected (B, 5) soft-landing observations")
     o = obs.astype(np.float64)
@@ -144,7 +153,65 @@ def augment_observation(obs: np.ndarray, consts: dict[str, float],
     return out.astype(np.float32)
 
 
-def _feature_bounds(names: Sequence[str]) -> tuple[list[float], list[float]]:
+def _augment_pinpoint(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np.ndarray:
+    """Pinpoint features (``LunarPinpointLanding-v*`` observations (B, 9)).
+
+    ``log_altitude`` log10(1 + h/1 m)/4.2 (h above the gate); ``fine_range`` sign·log(1 +
+    |d|/1 m)/13 of the target − lander components (radial, along, cross: 1 m and 500 km both
+    resolved); ``fine_velocity`` sign·log(1 + |v|/1 m/s)/7.5 of u, v, w; ``stopping_ratio``
+    log(1 + v²/(2·(F/m)·|d|)) clipped to [0, 8] (≈ log 2 when a full-thrust stop along the
+    motion just reaches the target distance: the braking timing of a constant-thrust lander);
+    ``time_to_go`` full-thrust braking time v/(F/m) and |d|/max(v, 1 m/s), both /100 s, clipped
+    to [0, 10]; ``fuel_margin`` (propellant − m(1 − exp(−v/v_e)))/nominal propellant.
+    """
+    if obs.ndim != 2 or obs.shape[1] != 9:
+        raise ValueError(f"obs shape {obs.shape}: expected (B, 9) pinpoint observations")
+    for n in names:
+        if n not in PINPOINT_FEATURE_WIDTHS:
+            raise ValueError(f"obs_features {n!r} is not defined for the pinpoint env; allowed: "
+                             f"{sorted(PINPOINT_FEATURE_WIDTHS)}")
+    o = obs.astype(np.float64)
+    q = consts["decode"](o)
+    d = np.stack([q["target_radial_m"], q["target_along_m"], q["target_cross_m"]], axis=1)
+    vel = np.stack([q["u_m_s"], q["v_m_s"], q["w_m_s"]], axis=1)
+    dist = np.sqrt(np.sum(d * d, axis=1))
+    speed = np.sqrt(np.sum(vel * vel, axis=1))
+    prop = np.maximum(q["propellant_kg"], 0.0)
+    m = consts["dry_mass_kg"] + prop
+    a_thrust = consts["thrust_n"] / m
+    cols: list[np.ndarray] = []
+    for name in names:
+        if name == "log_altitude":
+            cols.append(np.log10(1.0 + np.maximum(q["altitude_m"], 0.0)) / 4.2)
+        elif name == "fine_range":
+            cols += [np.sign(d[:, j]) * np.log1p(np.abs(d[:, j])) / 13.0 for j in range(3)]
+        elif name == "fine_velocity":
+            cols += [np.sign(vel[:, j]) * np.log1p(np.abs(vel[:, j])) / 7.5 for j in range(3)]
+        elif name == "stopping_ratio":
+            ratio = speed ** 2 / (2.0 * a_thrust * np.maximum(dist, 1.0))
+            cols.append(np.clip(np.log1p(ratio), 0.0, 8.0))
+        elif name == "time_to_go":
+            cols.append(np.clip(speed / a_thrust / 100.0, 0.0, 10.0))
+            cols.append(np.clip(dist / np.maximum(speed, 1.0) / 100.0, 0.0, 10.0))
+        elif name == "fuel_margin":
+            need = m * -np.expm1(-speed / consts["exhaust_velocity_m_s"])
+            cols.append((prop - need) / consts["prop_nominal_kg"])
+    out = np.concatenate([o, np.stack(cols, axis=1)], axis=1)
+    return out.astype(np.float32)
+
+
+def _feature_bounds(names: Sequence[str], pinpoint: bool = False
+                    ) -> tuple[list[float], list[float]]:
+    if pinpoint:
+        lo, hi = [], []
+        for name in names:
+            w = PINPOINT_FEATURE_WIDTHS[name]
+            b = {"log_altitude": (0.0, 2.0), "fine_range": (-2.0, 2.0),
+                 "fine_velocity": (-2.0, 2.0), "stopping_ratio": (0.0, 8.0),
+                 "time_to_go": (0.0, 10.0), "fuel_margin": (-2.0, 2.0)}[name]
+            lo += [b[0]] * w
+            hi += [b[1]] * w
+        return lo, hi
     lo, hi = [], []
     for name in names:
         if name == "log_altitude":
@@ -190,7 +257,7 @@ class ObsFeatureWrapper(VecEnvWrapper):
                             "inside the wrapper chain")
         self.consts = feature_constants(native)
         base = venv.observation_space
-        lo, hi = _feature_bounds(self.names)
+        lo, hi = _feature_bounds(self.names, bool(self.consts.get("pinpoint")))
         space = spaces.Box(np.concatenate([base.low, lo]).astype(np.float32),
                            np.concatenate([base.high, hi]).astype(np.float32), dtype=np.float32)
         super().__init__(venv, observation_space=space)

@@ -17,6 +17,11 @@ Potential (YAML ``reward_shaping: {potential: surface_speed, weight: w}``):
     charges a truncated episode with). Thrust that opposes the motion lowers v_s; diving raises
     it. With w = 1 the potential has the same form and scale as the env's terminal penalty.
 
+``gate_speed_and_range`` (pinpoint env)
+    Φ(s) = −w·(log(1 + v_g / 1 m/s) + log(1 + d / 100 m)), v_g the engine-off speed at the
+    2 km gate sphere and d the distance to the target: the same form and scale as the
+    pinpoint env's terminal penalty.
+
 The potential is computed from the observation (altitude, radial and horizontal speed), so the
 wrapper sits outside the start-state curriculum and needs no access to the env's state.
 Evaluation is not affected (it measures touchdown speed and fuel, not rewards). Decision: a
@@ -35,7 +40,20 @@ from agents.features import feature_constants
 
 __all__ = ["PotentialShaping", "surface_speed_m_s"]
 
-POTENTIALS = ("surface_speed",)
+POTENTIALS = ("surface_speed", "gate_speed_and_range")
+
+
+def gate_speed_and_range(obs: np.ndarray, consts: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Engine-off speed at the 2 km gate sphere (m/s) and distance to the target (m), shape
+    (B,) each, from pinpoint observations (B, ≥9)."""
+    q = consts["decode"](np.asarray(obs, dtype=np.float64)[:, :9])
+    h = np.maximum(q["altitude_m"], 0.0)
+    rg = consts["gate_radius_m"]
+    drop = 2.0 * consts["mu_m3_s2"] * (1.0 / rg - 1.0 / (rg + h))
+    v_gate = np.sqrt(q["u_m_s"] ** 2 + q["v_m_s"] ** 2 + q["w_m_s"] ** 2 + drop)
+    dist = np.sqrt(q["target_radial_m"] ** 2 + q["target_along_m"] ** 2
+                   + q["target_cross_m"] ** 2)
+    return v_gate, dist
 
 
 def surface_speed_m_s(obs: np.ndarray, consts: dict[str, float], surface_radius_m: float
@@ -76,7 +94,11 @@ class PotentialShaping(VecEnvWrapper):
         if native is None:
             raise TypeError("PotentialShaping needs a LanderSB3VecEnv of LunarSoftLanding-v0")
         self.consts = feature_constants(native)
-        self.surface_radius_m = float(native.scenario.surface_radius_m)
+        pinpoint = bool(self.consts.get("pinpoint"))
+        if pinpoint != (potential == "gate_speed_and_range"):
+            raise ValueError(f"potential={potential!r} does not fit this env: use "
+                             f"{'gate_speed_and_range' if pinpoint else 'surface_speed'}")
+        self.surface_radius_m = float(getattr(native.scenario, "surface_radius_m", np.nan))
         self.gamma = float(gamma)
         self.potential = potential
         self.weight = float(weight)
@@ -84,6 +106,9 @@ class PotentialShaping(VecEnvWrapper):
 
     def phi(self, obs: np.ndarray) -> np.ndarray:
         """Φ of observations, shape (B,)."""
+        if self.potential == "gate_speed_and_range":
+            v_gate, dist = gate_speed_and_range(obs, self.consts)
+            return -self.weight * (np.log1p(v_gate) + np.log1p(dist / 100.0))
         return -self.weight * np.log1p(surface_speed_m_s(obs, self.consts,
                                                          self.surface_radius_m))
 

@@ -65,3 +65,47 @@ def test_bad_inputs(scenario, tmp_path):
     failed = po.PinpointOptimum(False, float("nan"), float("nan"), message="x")
     with pytest.raises(ValueError, match="failed"):
         failed.angles_at(1.0)
+
+
+def test_pinpoint_features_decode_and_shaping():
+    from agents.features import (
+        PINPOINT_FEATURE_WIDTHS,
+        ObsFeatureWrapper,
+        augment_observation,
+        feature_constants,
+    )
+    from agents.shaping import PotentialShaping, gate_speed_and_range
+    from agents.vec_env import make_sb3_vec_env
+    from lunar_env import dynamics as dyn
+
+    venv = make_sb3_vec_env("LunarPinpointLanding-v1", 2, seed=0)
+    env = venv.native
+    consts = feature_constants(env)
+    names = list(PINPOINT_FEATURE_WIDTHS)
+    lo = env.single_observation_space.low.astype(np.float64)
+    hi = env.single_observation_space.high.astype(np.float64)
+    obs = np.random.default_rng(0).uniform(lo, hi, (3000, 9))
+    obs[:4], obs[4:8] = lo, hi
+    out = augment_observation(obs, consts, names)
+    assert out.shape == (3000, 9 + sum(PINPOINT_FEATURE_WIDTHS.values()))
+    assert np.isfinite(out).all()
+    # the decode is the env's own inverse: velocities and mass of the true state
+    o = venv.reset()
+    for _ in range(30):
+        o, *_ = venv.step(np.zeros((2, 2), np.float32))
+    q = env.observation_quantities(o)
+    sc = env.scenario
+    s = sc.scaling()
+    d = dyn.moon3d_derived(env.state_nd, sc.params(s))
+    np.testing.assert_allclose(q["u_m_s"], d["u_nd"] * s.velocity_m_s, rtol=1e-5, atol=1e-3)
+    np.testing.assert_allclose(q["v_m_s"], d["v_nd"] * s.velocity_m_s, rtol=1e-5)
+    np.testing.assert_allclose(q["propellant_kg"], env.state_nd[:, 6] * s.mass_kg - 300.0,
+                               rtol=1e-5)
+    dist = np.linalg.norm(env.state_nd[:, :3] * s.length_m - sc.target_position_m(), axis=1)
+    v_gate, d_obs = gate_speed_and_range(o, consts)
+    np.testing.assert_allclose(d_obs, dist, rtol=1e-5)
+    assert np.all(v_gate > 1000.0)
+    with pytest.raises(ValueError, match="gate_speed_and_range"):
+        PotentialShaping(venv, 0.99, potential="surface_speed")
+    w = ObsFeatureWrapper(PotentialShaping(venv, 0.99, potential="gate_speed_and_range"), names)
+    assert w.reset().shape == (2, w.observation_space.shape[0]) == (2, 20)

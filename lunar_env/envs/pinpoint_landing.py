@@ -156,6 +156,36 @@ class _PinpointTask:
         return _observation_kernel(np.array([y]), np.array([t_s]), self._obs_consts,
                                    self.obs_low, self.obs_high)[0]
 
+    def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
+        """SI quantities encoded in observations (B, 9): the inverse of :meth:`observation`
+        (exact inside the observation bounds). Keys: ``altitude_m`` (above the gate),
+        ``target_radial_m``, ``target_along_m``, ``target_cross_m`` (target − lander in the
+        orbital frame), ``u_m_s``, ``v_m_s``, ``w_m_s`` (velocity in the orbital frame),
+        ``propellant_kg``, ``time_s``."""
+        o = np.asarray(obs, dtype=np.float64).reshape(-1, 9)
+        v0 = self.speed_scale_m_s
+        return {"altitude_m": o[:, 0] * self.altitude_scale_m,
+                "target_radial_m": o[:, 1] * self.range_scale_m,
+                "target_along_m": o[:, 2] * self.range_scale_m,
+                "target_cross_m": o[:, 3] * self.range_scale_m,
+                "u_m_s": o[:, 4] * 0.1 * v0, "v_m_s": o[:, 5] * v0, "w_m_s": o[:, 6] * 0.1 * v0,
+                "propellant_kg": o[:, 7] * self.prop_nominal_nd * self.mass_ref_kg,
+                "time_s": o[:, 8] * self.time_limit_s}
+
+    def physical_constants(self) -> dict[str, float]:
+        """SI constants policies may use (derived features): ``thrust_n``,
+        ``exhaust_velocity_m_s``, ``dry_mass_kg``, ``mass_ref_kg``, ``prop_nominal_kg``,
+        ``mu_m3_s2`` (the Moon's gravitational parameter), ``gate_radius_m``."""
+        v = self.scenario.vehicle
+        L, V = self.length_ref_m, self.velocity_ref_m_s
+        return {"thrust_n": float(v.thrust_n),
+                "exhaust_velocity_m_s": float(v.exhaust_velocity_m_s),
+                "dry_mass_kg": float(self.dry_mass_nd * self.mass_ref_kg),
+                "mass_ref_kg": float(self.mass_ref_kg),
+                "prop_nominal_kg": float(self.prop_nominal_nd * self.mass_ref_kg),
+                "mu_m3_s2": float(V * V * L),  # μ = 1 in normalised units
+                "gate_radius_m": float(self.r_stop_nd * L)}
+
     def altitude_one(self, y: list) -> float:
         return (math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) - self.surface_radius_nd) \
             * self.length_ref_m
