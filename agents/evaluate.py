@@ -63,6 +63,7 @@ DEFAULT_ENV_ID = "LunarSoftLanding-v0"
 DEFAULT_N_STATES = 1000
 DEFAULT_SEED = 2026
 DEFAULT_EXPERT_STATES = 20
+PINPOINT_EXPERT_STATES = 5
 
 
 # ----------------------------------------------------------------------------- env helpers
@@ -434,6 +435,10 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
         all_policies.append((OpenLoopPolicy(sols), n_states))
     if not planar and open_loop:
         all_policies.append((PinpointOpenLoopPolicy(sols), n_states))
+    if not planar and n_expert_states and n_expert_states > 0:
+        from agents.pinpoint_optimum import PinpointReplanningPolicy
+
+        all_policies.append((PinpointReplanningPolicy(sols), min(n_expert_states, n_states)))
     if planar and n_expert_states and n_expert_states > 0:
         all_policies.append((ExpertPolicy(scenario), min(n_expert_states, n_states)))
     for pol, n in all_policies:
@@ -604,10 +609,13 @@ def evaluate_run(run_dir: str | Path, n_states: int = DEFAULT_N_STATES, seed: in
     args, hp = read_run(run_dir)
     env_id = args["env"]
     policy = SB3Policy.from_path(run_dir, name=f"{args['algo'].upper()} ({run_dir.name})")
+    if n_expert_states is None:
+        # the pinpoint expert re-solves an NLP every 10 s of flight (~55 per case): fewer cases
+        n_expert_states = PINPOINT_EXPERT_STATES if "Pinpoint" in env_id \
+            else DEFAULT_EXPERT_STATES
     report = compare(env_id, [policy], n_states=n_states, seed=seed,
                      env_kwargs=hp.get("env_kwargs"), open_loop=open_loop,
-                     n_expert_states=DEFAULT_EXPERT_STATES if n_expert_states is None
-                     else int(n_expert_states))
+                     n_expert_states=int(n_expert_states))
     paths = write_report(report, out_dir or run_dir / "evaluation")
     print()
     print(f"## {env_id}: {n_states} dispersed initial states (seed {seed})")
