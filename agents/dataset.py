@@ -64,11 +64,14 @@ import argparse
 import json
 import os
 import time
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from agents.runs import write_text_atomic
 
 __all__ = ["FORMAT_VERSION", "ImitationDataset", "generate", "load_dataset", "save_dataset",
            "trajectory_samples", "replay_labels", "main"]
@@ -144,7 +147,7 @@ def save_dataset(path: str | Path, meta: dict[str, Any], arrays: dict[str, np.nd
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     meta = dict(meta, format_version=FORMAT_VERSION)
-    tmp = path.with_name(path.name + ".tmp.npz")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.npz")
     np.savez_compressed(tmp, meta=np.array(json.dumps(meta)), **arrays)
     os.replace(tmp, path)
     return path
@@ -159,7 +162,13 @@ def load_dataset(path: str | Path) -> ImitationDataset:
         The file has no ``meta``, a different ``format_version`` than :data:`FORMAT_VERSION`,
         or lacks a required array.
     """
-    with np.load(path, allow_pickle=False) as z:
+    try:
+        z = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"dataset file {path} is damaged or not an .npz "
+                         f"({type(exc).__name__}: {exc}); regenerate it with python -m "
+                         "agents.dataset (finished shards are kept)") from None
+    with z:
         if "meta" not in z.files:
             raise ValueError(f"{path} is not an imitation dataset (no 'meta' entry); create one "
                              "with python -m agents.dataset")
@@ -169,7 +178,11 @@ def load_dataset(path: str | Path) -> ImitationDataset:
             raise ValueError(f"{path} has dataset format_version {ver!r}; this code reads "
                              f"version {FORMAT_VERSION}: regenerate it with python -m "
                              "agents.dataset")
-        arrays = {k: z[k] for k in z.files if k != "meta"}
+        try:
+            arrays = {k: z[k] for k in z.files if k != "meta"}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            raise ValueError(f"dataset file {path} is damaged ({type(exc).__name__}: {exc})"
+                             ) from None
     missing = [k for k in (*_PER_SAMPLE, *_PER_TRAJ) if k not in arrays]
     if missing:
         raise ValueError(f"{path} lacks arrays {missing}")
@@ -312,6 +325,34 @@ def _shard_path(shard_dir: Path, k: int) -> Path:
     return shard_dir / f"shard_{k:05d}.npz"
 
 
+def _read_shard(path: Path) -> dict[str, np.ndarray]:
+    """Every array of a shard file; ValueError naming the shard if it is damaged."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            out = {f: z[f] for f in z.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"dataset shard {path} is damaged ({type(exc).__name__}: {exc})"
+                         ) from None
+    missing = [k for k in (*_PER_TRAJ, *_PER_SAMPLE) if k not in out]
+    if missing:
+        raise ValueError(f"dataset shard {path} is damaged (lacks {missing})")
+    return out
+
+
+def _shard_done(path: Path) -> bool:
+    """True if the shard exists and reads; a damaged one is moved aside (``.damaged``) with a
+    message naming it, and its rows are solved again."""
+    if not path.exists():
+        return False
+    try:
+        _read_shard(path)
+        return True
+    except ValueError as exc:
+        os.replace(path, path.with_name(path.name + ".damaged"))
+        print(f"{exc}: moved to {path.name}.damaged; its rows are solved again")
+        return False
+
+
 def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
              env_kwargs: dict[str, Any] | None = None, n: int = 1000, seed: int = 0,
              n_workers: int = 2, shard_size: int = 50, n_steps: int = 400,
@@ -385,13 +426,13 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
             raise ValueError(f"{shard_dir} holds shards made with other settings "
                              f"({old}); delete it or choose another --out")
     else:
-        meta_file.write_text(json.dumps(key_meta, indent=1))
+        write_text_atomic(meta_file, json.dumps(key_meta, indent=1))
     n_shards = (int(n) + int(shard_size) - 1) // int(shard_size)
     jobs = []
     done_before = 0
     for k in range(n_shards):
         lo, hi = k * int(shard_size), min((k + 1) * int(shard_size), int(n))
-        if _shard_path(shard_dir, k).exists():
+        if _shard_done(_shard_path(shard_dir, k)):
             done_before += hi - lo
             continue
         jobs.append({"k": k, "rows": rows[lo:hi], "first_index": lo, "env_id": env_id,
@@ -407,12 +448,25 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         bar = tqdm(total=int(n), initial=done_before, desc=f"optimal landings {sc.name}",
                    unit="traj")
     t0 = time.perf_counter()
+    # This session's timing is rewritten (atomically) after every shard, so a run killed
+    # part-way still accounts for the shards it finished.
+    timing_file = shard_dir / "timing.json"
+    timing = json.loads(timing_file.read_text()) if timing_file.exists() else []
+    session = {"new_shards": 0, "wall_s": 0.0, "n_workers": int(n_workers)}
+    timing.append(session)
+
+    def _record_timing():
+        session["wall_s"] = time.perf_counter() - t0
+        write_text_atomic(timing_file, json.dumps(timing))
 
     def _store(job, res):
         wall = float(res.pop("wall_s"))
-        tmp = _shard_path(shard_dir, job["k"]).with_suffix(".tmp.npz")
+        path = _shard_path(shard_dir, job["k"])
+        tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
         np.savez_compressed(tmp, wall_s=np.array(wall), **res)
-        os.replace(tmp, _shard_path(shard_dir, job["k"]))
+        os.replace(tmp, path)
+        session["new_shards"] += 1
+        _record_timing()
         if bar is not None:
             bar.update(len(job["rows"]))
 
@@ -424,6 +478,7 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     ex = executor
     if ex is None:
         ex = LocalExecutor(0 if int(n_workers) == 1 or len(jobs) <= 1 else int(n_workers))
+    session.update(n_workers=int(ex.n_workers), executor=ex.describe())
     try:
         run_tasks(tasks, ex, on_result=lambda task, res: _store(by_k[task.key.index], res))
     finally:
@@ -431,18 +486,10 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
             ex.close()
         if bar is not None:
             bar.close()
-    wall_this = time.perf_counter() - t0
-    timing_file = shard_dir / "timing.json"
-    timing = json.loads(timing_file.read_text()) if timing_file.exists() else []
-    timing.append({"new_shards": len(jobs), "wall_s": wall_this,
-                   "n_workers": int(ex.n_workers), "executor": ex.describe()})
-    timing_file.write_text(json.dumps(timing))
+    _record_timing()
     if not all(_shard_path(shard_dir, k).exists() for k in range(n_shards)):
         return None
-    parts = []
-    for k in range(n_shards):
-        with np.load(_shard_path(shard_dir, k)) as z:
-            parts.append({f: z[f] for f in z.files})
+    parts = [_read_shard(_shard_path(shard_dir, k)) for k in range(n_shards)]
     arrays = {key: np.concatenate([p[key] for p in parts]) for key in (*_PER_TRAJ, *_PER_SAMPLE)}
     meta["wall_s"] = float(sum(t["wall_s"] for t in timing))
     meta["wall_s_sessions"] = timing

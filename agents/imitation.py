@@ -54,6 +54,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from agents.runs import save_model_atomic, write_text_atomic
+
 __all__ = ["build_model", "mean_actions", "fit_policy", "train_bc", "train_dagger",
            "rollout_policy", "label_episodes", "load_policy_model", "main"]
 
@@ -248,9 +250,9 @@ def _logger(run_dir: Path, tensorboard: bool):
 
 
 def _save_final(model, run_dir: Path) -> Path:
-    path = run_dir / "model.zip"
-    model.save(path)
-    return path
+    from agents.runs import save_model_atomic
+
+    return save_model_atomic(model, run_dir / "model.zip")
 
 
 def _rng_state(rng: np.random.Generator) -> dict:
@@ -291,8 +293,13 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
         if not found:
             raise FileNotFoundError(f"no BC checkpoint bc_epoch_<k>.pt in {ckdir}; start again "
                                     "without --resume")
-        epoch, path = found[-1]
-        state = th.load(path, weights_only=False)
+        from agents.runs import newest_loadable
+
+        # the newest checkpoint that loads (a damaged one is skipped, and said so)
+        path, state = newest_loadable([f for _, f in reversed(found)],
+                                      lambda f: th.load(f, weights_only=False),
+                                      what="BC checkpoint")
+        epoch = int(_BC_CKPT.match(path.name).group(1))
         policy.load_state_dict(state["policy"])
         optimizer = th.optim.Adam(_actor_parameters(policy), lr=float(bc["learning_rate"]))
         optimizer.load_state_dict(state["optimizer"])
@@ -303,7 +310,7 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
 
     def on_epoch(epoch, opt, stats):
         if (epoch + 1) % every == 0 or epoch + 1 == int(bc["n_epochs"]):
-            tmp = ckdir / f"bc_epoch_{epoch}.pt.tmp"
+            tmp = ckdir / f".bc_epoch_{epoch}.pt.{os.getpid()}.tmp"
             th.save({"policy": policy.state_dict(), "optimizer": opt.state_dict(),
                      "rng": _rng_state(rng), "stats": stats}, tmp)
             os.replace(tmp, ckdir / f"bc_epoch_{epoch}.pt")
@@ -325,7 +332,7 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
     summary = {k: v for k, v in stats.items() if k != "optimizer"}
     summary.update(train_wall_s_this_session=wall, n_samples=int(train_mask.sum()),
                    n_val_samples=int(val_mask.sum()))
-    (run_dir / "bc_summary.yml").write_text(yaml.safe_dump(summary))
+    write_text_atomic(run_dir / "bc_summary.yml", yaml.safe_dump(summary))
     print(f"BC done: {summary}. Model: {path}")
     return model
 
@@ -472,8 +479,13 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
     todo = []
     for i in range(len(jobs)):
         if cache is not None and _part(i).exists():
-            with np.load(_part(i)) as z:
-                results[i] = [{k: z[f"{k}_{e}"] for k in keys} for e in range(int(z["n"]))]
+            try:
+                with np.load(_part(i)) as z:
+                    results[i] = [{k: z[f"{k}_{e}"] for k in keys} for e in range(int(z["n"]))]
+            except Exception as exc:  # a damaged cache part: label those episodes again
+                print(f"label cache {_part(i)} is damaged ({type(exc).__name__}); relabelling")
+                todo.append(i)
+                continue
             if bar is not None:
                 bar.update(sum(len(e["label_idx"]) for e in jobs[i]["episodes"]))
         else:
@@ -483,11 +495,11 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
             for i in todo:
                 _keep(i, _label_chunk(jobs[i]))
         else:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor, as_completed
+            from concurrent.futures import as_completed
 
-            with ProcessPoolExecutor(max_workers=n_workers,
-                                     mp_context=mp.get_context("spawn")) as ex:
+            from agents.runs import process_pool
+
+            with process_pool(n_workers) as ex:  # workers end with this process
                 futs = {ex.submit(_label_chunk, jobs[i]): i for i in todo}
                 for fut in as_completed(futs):
                     _keep(futs[fut], fut.result())
@@ -523,8 +535,12 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     lbdir.mkdir(parents=True, exist_ok=True)
     done = sorted((int(m.group(1)), f) for f in ckdir.iterdir() if (m := _DG_CKPT.match(f.name)))
     if resume and done:
-        it0, path = done[-1]
-        model = PPO.load(path, device=run["device"])
+        from agents.runs import newest_loadable
+
+        path, model = newest_loadable([f for _, f in reversed(done)],
+                                      lambda f: PPO.load(f, device=run["device"]),
+                                      what="DAgger checkpoint")
+        it0 = int(_DG_CKPT.match(path.name).group(1))
         start = it0 + 1
         print(f"Resuming DAgger {run_dir} after iteration {it0} of {dg['n_iterations']}")
     else:
@@ -616,8 +632,8 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
                                                                           strict=True)},
                         "train_loss": float(stats["train_loss"]),
                         "wall_s": time.perf_counter() - t_it})
-        model.save(ckdir / f"dagger_iter_{it}.zip")
-        history_file.write_text(yaml.safe_dump(history))
+        save_model_atomic(model, ckdir / f"dagger_iter_{it}.zip")
+        write_text_atomic(history_file, yaml.safe_dump(history))
     logger.close()
     path = _save_final(model, run_dir)
     print(f"DAgger done ({dg['n_iterations']} iterations). Model: {path}")
@@ -758,26 +774,31 @@ def main(argv: list[str] | None = None) -> int:
         if run["mode"] != args.mode:
             parser.error(f"--resume {run_dir}: it is a {run['mode']} run, not {args.mode}")
         run["no_progress"] = args.no_progress
-        with (run_dir / "command.txt").open("a") as fh:
-            fh.write(shlex.join([sys.executable, "-m", "agents.imitation", *argv_list]) + "\n")
+        cmd_file = run_dir / "command.txt"
+        write_text_atomic(cmd_file, (cmd_file.read_text() if cmd_file.exists() else "")
+                          + shlex.join([sys.executable, "-m", "agents.imitation", *argv_list])
+                          + "\n")
         resume = True
     else:
         if args.dataset is None:
             parser.error("--dataset is required (make one with python -m agents.dataset)")
         hp, run = _resolve(args)
-        run_dir = Path(args.run_dir) if args.run_dir else _new_run_dir(args.log_folder,
-                                                                       args.mode, args.env)
-        if run_dir.exists() and any(run_dir.iterdir()):
-            parser.error(f"run directory {run_dir} exists and is not empty; use --resume")
-        run_dir.mkdir(parents=True, exist_ok=True)
+        from agents.runs import claim_run_dir
+
+        try:  # both created atomically: concurrent runs never share a directory
+            run_dir = (claim_run_dir(args.run_dir) if args.run_dir
+                       else _new_run_dir(args.log_folder, args.mode, args.env))
+        except FileExistsError as exc:
+            parser.error(str(exc))
         run["run_dir"] = str(run_dir)
         from agents.dataset import load_dataset
 
         hp["env_kwargs"] = load_dataset(args.dataset).meta.get("env_kwargs") or {}
-        (run_dir / "config.yml").write_text(yaml.safe_dump(hp, sort_keys=True))
-        (run_dir / "args.yml").write_text(yaml.safe_dump(run, sort_keys=True))
-        (run_dir / "command.txt").write_text(
-            shlex.join([sys.executable, "-m", "agents.imitation", *argv_list]) + "\n")
+        write_text_atomic(run_dir / "config.yml", yaml.safe_dump(hp, sort_keys=True))
+        write_text_atomic(run_dir / "args.yml", yaml.safe_dump(run, sort_keys=True))
+        write_text_atomic(run_dir / "command.txt",
+                          shlex.join([sys.executable, "-m", "agents.imitation", *argv_list])
+                          + "\n")
         resume = False
     print(f"Run directory: {run_dir}  (mode={run['mode']}, env={run['env']}, "
           f"config={run['config']}, seed={run['seed']})")

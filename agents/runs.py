@@ -30,9 +30,12 @@ from typing import Any
 
 import yaml
 
-__all__ = ["CKPT_RE", "next_run_dir", "run_dir_of", "read_run", "checkpoints",
+from optimizers.common.processes import exit_with_parent
+
+__all__ = ["CKPT_RE", "next_run_dir", "claim_run_dir", "run_dir_of", "read_run", "checkpoints",
            "latest_checkpoint", "resumable_checkpoint", "load_trained", "write_text_atomic",
-           "save_model_atomic", "save_vecnormalize_atomic", "algo_class"]
+           "save_model_atomic", "save_vecnormalize_atomic", "algo_class", "newest_loadable",
+           "exit_with_parent", "process_pool"]
 
 CKPT_RE = re.compile(r"^rl_model_(\d+)_steps\.zip$")
 
@@ -68,22 +71,58 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
     return path
 
 
+def _fsync(path: Path) -> None:
+    with open(path, "rb") as fh:
+        os.fsync(fh.fileno())
+
+
 def save_model_atomic(model, path: str | Path) -> Path:
-    """``model.save`` to a temporary ``.zip`` beside ``path``, then ``os.replace``."""
+    """``model.save`` to a temporary ``.zip`` beside ``path`` (unique per process), then
+    ``os.replace``."""
     path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp.zip")
-    model.save(tmp)
-    os.replace(tmp, path)
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.zip")
+    try:
+        model.save(tmp)
+        _fsync(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
 def save_vecnormalize_atomic(vecnormalize, path: str | Path) -> Path:
     """``VecNormalize.save`` to a temporary file beside ``path``, then ``os.replace``."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    vecnormalize.save(str(tmp))
-    os.replace(tmp, path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        vecnormalize.save(str(tmp))
+        _fsync(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
+
+
+def newest_loadable(candidates, load, what: str = "checkpoint", log=print):
+    """``(path, load(path))`` of the first of ``candidates`` (newest first) that loads.
+
+    Damaged files are skipped with a message through ``log`` naming each and why; if none
+    loads, ``FileNotFoundError`` lists every file and its error.
+    """
+    rejected = []
+    for path in candidates:
+        try:
+            obj = load(path)
+        except Exception as exc:  # a damaged file: any reader error
+            rejected.append((path, f"{type(exc).__name__}: {exc}"))
+            continue
+        for p, why in rejected:
+            log(f"resume: skipping damaged {what} {p} ({why}); using {path}")
+        return path, obj
+    details = "; ".join(f"{p}: {why}" for p, why in rejected) or "none found"
+    raise FileNotFoundError(f"no loadable {what} ({details})")
 
 
 # ----------------------------------------------------------------------------- run dirs
@@ -107,6 +146,30 @@ def next_run_dir(parent: str | Path, prefix: str) -> Path:
             return path
         except FileExistsError:
             k += 1
+
+
+def claim_run_dir(path: str | Path) -> Path:
+    """Create an explicit run directory (``--run-dir``) for this process alone.
+
+    The directory may exist only if empty; the claim is an exclusive lock file
+    (``O_CREAT | O_EXCL``), so two processes given the same directory never both get it.
+
+    Raises
+    ------
+    FileExistsError
+        It holds files already, or another process claimed it first.
+    """
+    path = Path(path)
+    path.mkdir(parents=True, exist_ok=True)
+    if any(p.name != ".claimed" for p in path.iterdir()):
+        raise FileExistsError(f"run directory {path} exists and is not empty; use --resume")
+    try:
+        fd = os.open(path / ".claimed", os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+    except FileExistsError:
+        raise FileExistsError(f"run directory {path} was claimed by another process") from None
+    os.write(fd, f"{os.getpid()}\n".encode())
+    os.close(fd)
+    return path
 
 
 def run_dir_of(path: str | Path) -> Path:
@@ -164,11 +227,16 @@ def _vecnormalize_path(ckpt: Path, steps: int) -> Path:
 
 
 def _readable_zip(path: Path) -> str | None:
+    """None for a readable SB3 model zip, else why not (damaged, or not a model)."""
     try:
         with zipfile.ZipFile(path) as zf:
             bad = zf.testzip()
-        return None if bad is None else f"member {bad} is corrupt"
-    except (zipfile.BadZipFile, OSError) as exc:
+            names = set(zf.namelist())
+        if bad is not None:
+            return f"member {bad} is corrupt"
+        missing = {"data", "policy.pth"} - names
+        return f"not an SB3 model (no {sorted(missing)})" if missing else None
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
         return f"not a readable zip ({exc})"
 
 
@@ -256,3 +324,15 @@ def load_trained(run_dir_or_model: str | Path, env=None, device: str = "cpu"):
                                                         else "ppo")
     model = algo_class(algo).load(model_path, env=env, device=device)
     return model, (vn_path if vn_path.exists() else None), algo
+
+
+# ----------------------------------------------------------------------------- worker processes
+
+
+def process_pool(n_workers: int):
+    """A spawn-context ``ProcessPoolExecutor`` whose workers end when this process ends."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    return ProcessPoolExecutor(max_workers=int(n_workers), mp_context=mp.get_context("spawn"),
+                               initializer=exit_with_parent, initargs=(os.getpid(),))

@@ -36,8 +36,10 @@ SB3's ``make_vec_env``.
 Resuming: ``--resume RUN_DIR`` reloads the newest checkpoint (model, optimiser state,
 ``VecNormalize`` statistics, replay buffer, timestep counter) and continues with
 ``reset_num_timesteps=False`` until the run's ``n_timesteps``; an interrupted run (Ctrl-C or
-SIGTERM) writes a checkpoint before exiting. Checkpoints are taken at the end of a rollout, so no
-collected-and-trained step is lost; the learning-rate schedule continues where it stopped.
+SIGTERM) writes a checkpoint before exiting. Checkpoints are taken between rollouts, after the
+algorithm trained on the last one, so every counted step is trained on exactly once (a SIGKILL
+loses at most the steps since the last checkpoint); the learning-rate schedule continues where it
+stopped.
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ from agents.hyperparams import (
 )
 from agents.runs import (
     algo_class,
+    claim_run_dir,
     load_trained,
     next_run_dir,
     read_run,
@@ -264,10 +267,13 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
     class RolloutCheckpointCallback(CheckpointCallback):
-        """``CheckpointCallback`` that saves at rollout ends, every ``save_freq`` env steps.
+        """``CheckpointCallback`` that saves between rollouts, every ``save_freq`` env steps.
 
-        Saving at the end of a rollout (not in the middle of one, as the parent does) means a
-        resumed run restarts from a state where every counted step has been trained on. The
+        The save happens at the *start* of the next rollout, i.e. after the algorithm trained on
+        the previous one (SB3 calls ``on_rollout_end`` *before* ``train()``: a checkpoint taken
+        there counted a rollout the model had not learnt from, and a resumed run never trained
+        on it — issue 18, found by the kill-and-resume test). A resumed run therefore restarts
+        from a state where every counted step has been trained on exactly once. The
         ``VecNormalize`` statistics, the replay buffer (off-policy) and the run's config are
         saved alongside. ``save_freq`` counts env steps (all envs together), not calls.
         """
@@ -282,28 +288,29 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
 
         def _on_training_start(self) -> None:
             self._last_saved = self.model.num_timesteps
-            self._last_rollout_end = self.model.num_timesteps
+            self._last_trained = self.model.num_timesteps
 
         def _on_step(self) -> bool:
             return True
 
-        def _on_rollout_end(self) -> None:
-            self._last_rollout_end = self.model.num_timesteps
+        def _on_rollout_start(self) -> None:
+            # the previous rollout (if any) has been collected *and* trained on
+            self._last_trained = self.model.num_timesteps
             if self.model.num_timesteps - self._last_saved >= self.save_every_steps:
                 self.save_now()
 
         def save_now(self, interrupted: bool = False) -> Path:
             """Write the checkpoint for the current ``num_timesteps`` and return its path.
 
-            ``interrupted``: called in the middle of a rollout. An on-policy algorithm has not
-            trained on the partial rollout, so its step counter is rolled back to the last
-            rollout end: the resumed run collects those steps again and ends after exactly as
-            many trained steps as an uninterrupted run.
+            ``interrupted``: called in the middle of a rollout (or of its training). An
+            on-policy algorithm has not trained on the partial rollout, so its step counter is
+            rolled back to the last trained rollout: the resumed run collects those steps again
+            and ends after exactly as many trained steps as an uninterrupted run.
             """
             from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
             if interrupted and isinstance(self.model, OnPolicyAlgorithm):
-                self.model.num_timesteps = self._last_rollout_end
+                self.model.num_timesteps = self._last_trained
             self.num_timesteps = self.model.num_timesteps  # the parent names files after this
             path = Path(self._checkpoint_path(extension="zip"))
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -439,12 +446,14 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
 
 
 def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False,
-          callbacks: list | None = None):
+          callbacks: list | None = None, on_resumed=None):
     """Train (or continue) one run; returns ``(model, run_dir)``.
 
     ``hp`` are the resolved YAML hyperparameters, ``run`` the run arguments (as in ``args.yml``),
     ``callbacks`` extra SB3 callbacks. A ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM) raised during
-    training writes a checkpoint and propagates.
+    training writes a checkpoint and propagates. ``on_resumed()`` is called once a resumed
+    checkpoint has loaded (the CLI records a changed config only then: a failed resume changes
+    nothing in the run directory).
     """
     import torch
     from stable_baselines3.common.utils import set_random_seed
@@ -480,6 +489,8 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             raise RuntimeError(f"checkpoint {ckpt} holds num_timesteps={model.num_timesteps}, "
                                f"expected {steps}")
         print(f"Resuming {run_dir} from step {steps} of {n_timesteps}")
+        if on_resumed is not None:
+            on_resumed()
     else:
         norm_kw = _normalize_kwargs(hp.get("normalize"), hp.get("gamma"))
         init = None
@@ -599,14 +610,18 @@ def main(argv: list[str] | None = None) -> int:
             if args.n_timesteps < 1:
                 parser.error(f"-n {args.n_timesteps}: must be >= 1")
             hp["n_timesteps"] = int(args.n_timesteps)
-            write_text_atomic(run_dir / "config.yml", yaml.safe_dump(hp, sort_keys=True))
         for key in ("no_progress", "no_eval", "eval_states", "eval_expert_states"):
             if f"--{key.replace('_', '-')}" in argv_list:
                 run[key] = getattr(args, key)
-        command = (run_dir / "command.txt").read_text() if (run_dir / "command.txt").exists() \
-            else ""
-        write_text_atomic(run_dir / "command.txt",
-                          command + shlex.join([sys.executable, *sys.argv]) + "\n")
+
+        def on_resumed(run_dir=run_dir, hp=hp):
+            # written only once the checkpoint has loaded: a failed resume changes nothing
+            if args.n_timesteps is not None:
+                write_text_atomic(run_dir / "config.yml", yaml.safe_dump(hp, sort_keys=True))
+            cmd_file = run_dir / "command.txt"
+            command = cmd_file.read_text() if cmd_file.exists() else ""
+            write_text_atomic(cmd_file, command + shlex.join([sys.executable, *sys.argv]) + "\n")
+
         resume = True
     elif args.optimize:
         from agents.optimize import optimize
@@ -626,10 +641,10 @@ def main(argv: list[str] | None = None) -> int:
     else:
         hp, run = _resolve_args(args)
         if args.run_dir:
-            run_dir = Path(args.run_dir)
-            if run_dir.exists() and any(run_dir.iterdir()):
-                parser.error(f"run directory {run_dir} exists and is not empty; use --resume")
-            run_dir.mkdir(parents=True, exist_ok=True)
+            try:  # claimed atomically: two processes never share an explicit --run-dir
+                run_dir = claim_run_dir(args.run_dir)
+            except FileExistsError as exc:
+                parser.error(str(exc))
         else:  # created atomically: concurrent runs never share a directory
             run_dir = next_run_dir(Path(args.log_folder) / args.algo, args.env)
         run["run_dir"] = str(run_dir)
@@ -637,10 +652,11 @@ def main(argv: list[str] | None = None) -> int:
         write_text_atomic(run_dir / "args.yml", yaml.safe_dump(run, sort_keys=True))
         write_text_atomic(run_dir / "command.txt", shlex.join([sys.executable, *sys.argv]) + "\n")
         resume = False
+        on_resumed = None
     print(f"Run directory: {run_dir}  (algo={run['algo']}, env={run['env']}, "
           f"config={run['config']}, seed={run['seed']})")
     try:
-        train(hp, run, run_dir, resume=resume)
+        train(hp, run, run_dir, resume=resume, on_resumed=on_resumed)
     except KeyboardInterrupt:
         return 130
     n_eval = 0 if run.get("no_eval") else int(run.get("eval_states") or 0)

@@ -66,7 +66,7 @@ def load_checkpoint(path: str | os.PathLike, identity: dict[str, Any]) -> Any:
     try:
         with open(path, "rb") as fh:
             payload = pickle.load(fh)
-    except (pickle.UnpicklingError, EOFError, AttributeError, ImportError, IndexError) as exc:
+    except Exception as exc:  # any unpickling failure of a damaged or foreign file
         raise ValueError(f"checkpoint {path} is damaged and cannot be read ({exc!r}); delete it "
                          "to start afresh") from None
     if not isinstance(payload, dict) or payload.get("format") != _FORMAT:

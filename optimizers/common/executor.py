@@ -206,8 +206,12 @@ class LocalExecutor(Executor):
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
+        from .processes import exit_with_parent
+
+        # workers end with this process, even after a SIGKILL (issue 18: no orphans)
         return ProcessPoolExecutor(max_workers=self.n_workers,
-                                   mp_context=mp.get_context("spawn"))
+                                   mp_context=mp.get_context("spawn"),
+                                   initializer=exit_with_parent, initargs=(os.getpid(),))
 
     def imap_unordered(self, tasks: Iterable[Task]) -> Iterator[tuple[Task, Any]]:
         tasks = list(tasks)
