@@ -585,8 +585,10 @@ def write_report(report: dict[str, Any], out_dir: str | Path) -> dict[str, Path]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     md = markdown_table(report)
-    (out / "comparison.md").write_text(md + "\n")
-    (out / "comparison.json").write_text(json.dumps(_json_report(report), indent=1))
+    from agents.runs import write_text_atomic
+
+    write_text_atomic(out / "comparison.md", md + "\n")
+    write_text_atomic(out / "comparison.json", json.dumps(_json_report(report), indent=1))
     paths = {"markdown": out / "comparison.md", "json": out / "comparison.json"}
     try:
         paths["plot"] = plot_comparison(report, out / "trajectories.png")
@@ -633,7 +635,9 @@ def publish_report(report: dict, out: str | Path, json_path: str | None = None) 
     """
     paths = write_report(report, out)
     if json_path:
-        Path(json_path).write_text(json.dumps(_json_report(report), indent=1))
+        from agents.runs import write_text_atomic
+
+        write_text_atomic(json_path, json.dumps(_json_report(report), indent=1))
     print()
     print(markdown_table(report))
     print()

@@ -166,7 +166,8 @@ def claim_run_dir(path: str | Path) -> Path:
     try:
         fd = os.open(path / ".claimed", os.O_CREAT | os.O_EXCL | os.O_WRONLY)
     except FileExistsError:
-        raise FileExistsError(f"run directory {path} was claimed by another process") from None
+        raise FileExistsError(f"run directory {path} was claimed by another process (if none "
+                              f"runs there, delete {path / '.claimed'})") from None
     os.write(fd, f"{os.getpid()}\n".encode())
     os.close(fd)
     return path

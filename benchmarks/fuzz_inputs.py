@@ -255,9 +255,14 @@ def check_case(tally: Tally, env_id: str, num_envs: int | None, kw: dict, opts, 
     else:
         bad = _bad_obs(env, obs, info, vector)
         if not bad and isinstance(opts, dict) and opts.get("state_nd") is not None:
-            want = np.broadcast_to(np.asarray(opts["state_nd"], float), env.state_nd.shape)
-            if not np.array_equal(env.state_nd.reshape(want.shape), want):
-                bad = "reset state_nd not honoured"
+            req = np.asarray(opts["state_nd"], float)
+            try:
+                want = np.broadcast_to(req, env.state_nd.shape)
+            except ValueError:
+                bad = f"state_nd rows of shape {req.shape} accepted for {env.state_nd.shape}"
+            else:
+                if not np.array_equal(env.state_nd, want):
+                    bad = "reset state_nd not honoured"
         tally.add("silent" if bad else "ok", what_r, bad or "")
     rng = np.random.default_rng(action_seed)
     shape = env.action_space.shape

@@ -657,7 +657,7 @@ def _fuzz(n_examples: int):
 def test_fuzz_env_inputs_work_or_are_named():
     """Construction arguments, reset options and actions: each works or raises an error that
     names it (hypothesis; ``python benchmarks/fuzz_inputs.py`` prints the counts)."""
-    _fuzz(60)
+    _fuzz(40)
 
 
 @pytest.mark.slow

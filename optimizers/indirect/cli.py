@@ -114,8 +114,9 @@ def main(argv: list[str] | None = None) -> int:
                         "median_solve_ms": float(1e3 * np.median(per)),
                         "fuel_kg_min": float(fuel.min()), "fuel_kg_max": float(fuel.max())}
     if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(out, fh, indent=2)
+        from ..common.checkpoint import atomic_write_bytes
+
+        atomic_write_bytes(args.json, json.dumps(out, indent=2).encode())
     return 0
 
 

@@ -435,9 +435,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         d = os.path.dirname(os.path.abspath(args.json))
         os.makedirs(d, exist_ok=True)
-        with open(args.json, "w") as fh:
-            json.dump({"published": PUBLISHED, "measured": measured}, fh, indent=2,
-                      default=_json_default)
+        from ..common.checkpoint import atomic_write_bytes
+
+        atomic_write_bytes(args.json, json.dumps({"published": PUBLISHED, "measured": measured},
+                                                 indent=2, default=_json_default).encode())
         print(f"JSON: {args.json}")
     return 0
 
