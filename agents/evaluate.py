@@ -651,6 +651,10 @@ def main(argv: list[str] | None = None) -> int:
         "\n")[0])
     p.add_argument("--env", default=None,
                    help=f"env id (default: the first model's run, else {DEFAULT_ENV_ID})")
+    p.add_argument("--env-kwargs", default=None,
+                   help="JSON dict of env arguments over the run's, e.g. "
+                        "'{\"scenario\": \"wang2003\", \"thrust_n\": 2929}' (a [003] lander "
+                        "at its optimal thrust; the per-case optimum is solved at that thrust)")
     p.add_argument("--model", action="append", default=[],
                    help="run directory or model .zip (repeatable)")
     p.add_argument("--n-states", type=int, default=DEFAULT_N_STATES)
@@ -690,6 +694,13 @@ def main(argv: list[str] | None = None) -> int:
         if len(args.model) > 1:
             policies[-1].name = f"{policies[-1].name} ({run_dir.name})"
     env_id = env_id or DEFAULT_ENV_ID
+    if args.env_kwargs:
+        import json as _json
+
+        extra = _json.loads(args.env_kwargs)
+        if not isinstance(extra, dict):
+            p.error(f"--env-kwargs {args.env_kwargs!r} must be a JSON object")
+        env_kwargs = {**(env_kwargs or {}), **extra}
     import os
 
     from optimizers.common.executor import RAY_ADDRESS_ENV, get_executor

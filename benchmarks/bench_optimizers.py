@@ -18,6 +18,16 @@ RK4 call, 100 steps) against a loop of scipy ``solve_ivp`` (RK45, rtol 1e-8, ato
 same equations, :func:`lunar_env.dynamics.planar_eom`) over the same candidates; both accuracies
 are measured against DOP853 at rtol 1e-12 and printed, and the ratio of the times.
 
+Part 3 — the [003] problem (:class:`~optimizers.problems.ThrustDesignProblem`: tf, thrust T
+and a cubic ψ; wang2003). FGA with the paper's settings, ASAGA as printed and its
+``temperature_scale="spread"`` variant, and pygmo's sga, sade and cmaes at the budget of one
+full FGA run (default 100 020 evaluations; ``--quick``: 300 generations), 10 seeds (quick 2).
+The pygmo algorithms minimise the FGA's penalty (weight 1, SI) through
+:class:`~optimizers.problems.PenalisedProblem`; ASAGA runs as many generations as fit in the
+budget. Reported: success rate (|dV| < 0.5 m/s, |dr| < 1 m), fuel gap of the landing runs to
+the certified optimum over T (Pontryagin), median terminal errors, wall time, and each
+algorithm's wall time as a ratio to pygmo sga's, timed in the same run.
+
 The machine may be shared: times are as measured, ratios are taken in the same run.
 """
 
@@ -175,27 +185,72 @@ def bench_fitness(n_candidates: int, n_scipy: int) -> dict:
             "scipy_velocity_error_m_s_max": float(max(err_scipy))}
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="3 seeds, 60 generations, 200 scipy")
-    ap.add_argument("--json", default=None)
-    ap.add_argument("--seeds", type=int, default=None)
-    ap.add_argument("--budget", type=int, default=None,
-                    help="evaluations per run for the pygmo algorithms (default: ASAGA's)")
-    args = ap.parse_args(argv)
-    n_seeds = args.seeds or (3 if args.quick else 10)
-    n_gen = 60 if args.quick else 300
-    print(f"bench_optimizers: {n_seeds} seeds, ASAGA {n_gen} generations "
-          f"(machine may be loaded; {os.cpu_count()} CPUs)")
-    res = {"optimizers": bench_optimizers(n_seeds, args.budget, n_gen)}
-    res["fitness"] = bench_fitness(1000, 100 if args.quick else 1000)
+def bench_wang2003(n_seeds: int, n_gen_fga: int) -> dict:
+    """Part 3: FGA, ASAGA (printed, spread) and pygmo sga/sade/cmaes on [003]'s problem."""
+    import pygmo as pg
 
-    opt = res["optimizers"]
+    from optimizers.evolutionary.fga import FGA
+    from optimizers.problems.thrust_design import ThrustDesignProblem
+    from optimizers.reproduce.wang2003 import optimal_thrust
+
+    problem = ThrustDesignProblem()
+    problem.fitness(np.array([220.0, 3.0, 0.0, 0.0, 10.0, 20.0]))  # compile
+    opt = optimal_thrust((2500.0, 3500.0))
+    optimum = opt["fuel_kg"]
+    print(f"[003] certified optimum over T: {optimum:.4f} kg at {opt['thrust_n'] / 1e3:.4f} kN")
+    budget = 20 + n_gen_fga * 10
+    probe = ASAGA(n_generations=10).solve(problem, seed=0)
+    asaga_gen = max(1, int(round(budget / (probe.n_fevals / 10))))
+    out = {"optimum_fuel_kg": optimum, "optimal_thrust_n": opt["thrust_n"],
+           "budget_fevals": budget, "asaga_generations": asaga_gen, "algorithms": {}}
+
+    def run_ours(make):
+        xs, walls, fev = [], [], []
+        for s in range(n_seeds):
+            r = make().solve(problem, seed=s)
+            xs.append(r.x)
+            walls.append(r.wall_s)
+            fev.append(r.n_fevals)
+        return xs, walls, fev
+
+    def run_pygmo(name):
+        gens = max(1, budget // 20 - 1)
+        xs, walls, fev = [], [], []
+        for s in range(n_seeds):
+            kw = {"force_bounds": True} if name == "cmaes" else {}
+            algo = getattr(pg, name)(gen=gens, seed=s, **kw)
+            pen = PenalisedProblem(problem, weight=1.0)
+            t = time.perf_counter()
+            pop = pg.algorithm(algo).evolve(pg.population(pen.to_pygmo(), size=20, seed=s))
+            walls.append(time.perf_counter() - t)
+            xs.append(np.asarray(pop.champion_x))
+            fev.append(int(pop.problem.get_fevals()))
+        return xs, walls, fev
+
+    entries = [("FGA (paper)", lambda: run_ours(lambda: FGA(n_generations=n_gen_fga))),
+               ("ASAGA (printed)", lambda: run_ours(lambda: ASAGA(n_generations=asaga_gen))),
+               ("ASAGA (spread T)", lambda: run_ours(
+                   lambda: ASAGA(n_generations=asaga_gen, temperature_scale="spread"))),
+               ("pygmo sga", lambda: run_pygmo("sga")),
+               ("pygmo sade", lambda: run_pygmo("sade")),
+               ("pygmo cmaes", lambda: run_pygmo("cmaes"))]
+    for label, fn in entries:
+        xs, walls, fev = fn()
+        out["algorithms"][label] = _summarise(problem, xs, walls, fev, optimum)
+        print(f"  {label}: done ({np.mean(walls):.2f} s/run)", flush=True)
+    ref = out["algorithms"]["pygmo sga"]["wall_s_mean"]
+    for s in out["algorithms"].values():
+        s["wall_ratio_to_sga"] = s["wall_s_mean"] / ref
+    return out
+
+
+def _print_table(opt: dict, n_seeds: int, ref_name: str, ratio: bool = False) -> None:
     print(f"\nSame problem, budget {opt['budget_fevals']} evaluations/run, {n_seeds} seeds; "
-          f"gap to the Pontryagin optimum {opt['optimum_fuel_kg']:.4f} kg")
+          f"gap to the {ref_name} {opt['optimum_fuel_kg']:.4f} kg")
     hdr = (f"{'algorithm':<28} {'success':>8} {'gap mean kg':>12} {'gap med kg':>11} "
            f"{'gap med conv':>13} "
-           f"{'|dV| med m/s':>13} {'|dr| med m':>11} {'wall s/run':>11} {'evals':>7}")
+           f"{'|dV| med m/s':>13} {'|dr| med m':>11} {'wall s/run':>11} {'evals':>7}"
+           + (f" {'wall/sga':>9}" if ratio else ""))
     print(hdr)
     print("-" * len(hdr))
     for name, s in opt["algorithms"].items():
@@ -204,20 +259,59 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:<28} {s['success_rate']:>8.0%} {s['gap_kg_mean']:>12.4f} "
               f"{s['gap_kg_median']:>11.4f} {conv:>13} {s['speed_m_s_median']:>13.3g} "
               f"{s['radius_err_m_median']:>11.3g} {s['wall_s_mean']:>11.2f} "
-              f"{s['n_fevals_mean']:>7.0f}")
+              f"{s['n_fevals_mean']:>7.0f}"
+              + (f" {s['wall_ratio_to_sga']:>9.2f}" if ratio else ""))
     print("(success: |dV| < 0.5 m/s and |dr| < 1 m; 'gap med conv': median over the successful "
           "runs; gaps of unsuccessful runs can be negative: they did not land)")
-    f = res["fitness"]
-    print(f"\nbatch_fitness of {f['n_candidates']} candidates: {f['batch_fitness_s'] * 1e3:.1f} ms "
-          f"(threaded kernel; serial kernel {f['batch_fitness_serial_s'] * 1e3:.1f} ms); "
-          f"scipy solve_ivp loop (RK45, rtol 1e-8; {f['n_scipy_timed']} timed, scaled): "
-          f"{f['scipy_loop_s']:.2f} s; ratio {f['ratio']:.0f}x (serial kernel: "
-          f"{f['ratio_serial_kernel']:.0f}x)")
-    print(f"terminal-velocity error vs DOP853 1e-12: RK4 {f['rk4_velocity_error_m_s_max']:.1e} "
-          f"m/s, solve_ivp {f['scipy_velocity_error_m_s_max']:.1e} m/s")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="3 seeds, 60 generations, 200 scipy")
+    ap.add_argument("--json", default=None)
+    ap.add_argument("--seeds", type=int, default=None)
+    ap.add_argument("--budget", type=int, default=None,
+                    help="evaluations per run for the pygmo algorithms (default: ASAGA's)")
+    ap.add_argument("--part", choices=("all", "zhu2007", "fitness", "wang2003"), default="all",
+                    help="run one part only (default all)")
+    args = ap.parse_args(argv)
+    n_seeds = args.seeds or (3 if args.quick else 10)
+    n_gen = 60 if args.quick else 300
+    print(f"bench_optimizers: {n_seeds} seeds, ASAGA {n_gen} generations "
+          f"(machine may be loaded; {os.cpu_count()} CPUs)")
+    res = {}
+    if args.part in ("all", "zhu2007"):
+        res["optimizers"] = bench_optimizers(n_seeds, args.budget, n_gen)
+    if args.part in ("all", "fitness"):
+        res["fitness"] = bench_fitness(1000, 100 if args.quick else 1000)
+    if args.part in ("all", "wang2003"):
+        res["wang2003"] = bench_wang2003(args.seeds or (2 if args.quick else 10),
+                                         300 if args.quick else 10_000)
+
+    if "optimizers" in res:
+        _print_table(res["optimizers"], n_seeds, "Pontryagin optimum")
+    if "fitness" in res:
+        f = res["fitness"]
+        print(f"\nbatch_fitness of {f['n_candidates']} candidates: "
+              f"{f['batch_fitness_s'] * 1e3:.1f} ms (threaded kernel; serial kernel "
+              f"{f['batch_fitness_serial_s'] * 1e3:.1f} ms); scipy solve_ivp loop (RK45, rtol "
+              f"1e-8; {f['n_scipy_timed']} timed, scaled): {f['scipy_loop_s']:.2f} s; ratio "
+              f"{f['ratio']:.0f}x (serial kernel: {f['ratio_serial_kernel']:.0f}x)")
+        print(f"terminal-velocity error vs DOP853 1e-12: RK4 "
+              f"{f['rk4_velocity_error_m_s_max']:.1e} m/s, solve_ivp "
+              f"{f['scipy_velocity_error_m_s_max']:.1e} m/s")
+    if "wang2003" in res:
+        w = res["wang2003"]
+        print(f"\n[003] problem (ASAGA {w['asaga_generations']} generations to match the budget)")
+        _print_table(w, args.seeds or (2 if args.quick else 10),
+                     "certified optimum over T", ratio=True)
     if args.json:
-        with open(args.json, "w") as fh:
+        d = os.path.dirname(os.path.abspath(args.json))
+        os.makedirs(d, exist_ok=True)
+        tmp = args.json + ".tmp"
+        with open(tmp, "w") as fh:
             json.dump(res, fh, indent=2)
+        os.replace(tmp, args.json)
         print(f"JSON: {args.json}")
     return 0
 

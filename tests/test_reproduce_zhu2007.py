@@ -25,6 +25,8 @@ def test_quick_reproduction_json_and_plots(tmp_path):
                 "parameterisation_optimum"):
         assert key in m, key
     assert m["n_runs"] == len(m["runs"]) == 2
+    v = m["variant"]  # ASAGA's spread-temperature variant on the same seeds
+    assert v["temperature_scale"] == "spread" and len(v["runs"]) == 2
     # physically sane: fuel is ṁ·tf with tf in the bounds [500, 700] s (capped by the dry mass)
     mdot = 1350.0 / (300 * 9.8)
     for r in m["runs"]:

@@ -7,6 +7,7 @@ Public helpers other modules rely on: :func:`thrust_angle_from_action`,
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -47,11 +48,26 @@ class _PlanarTask:
     def __init__(self, scenario: str | PlanarScenario = "zhu2007", dt_s: float = 1.0,
                  substeps: int = 2, time_limit_s: float | None = None,
                  throttle_channel: bool = False, success_speed_m_s: float = 5.0,
-                 max_fall_s: float | None = None, cutoff_speed_m_s: float = 20.0) -> None:
+                 max_fall_s: float | None = None, cutoff_speed_m_s: float = 20.0,
+                 thrust_n: float | None = None) -> None:
         sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
         if not isinstance(sc, PlanarScenario):
             raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not planar; "
                              "LunarSoftLanding-v0 needs a PlanarScenario (e.g. 'zhu2007')")
+        if thrust_n is not None:
+            # fly the vehicle's engine at a chosen constant level ([003]: T is a design
+            # variable in [0, T_max]); the throttle channel, if any, then scales this level
+            t_max = sc.vehicle.thrust_n
+            try:
+                level = float(thrust_n)
+            except (TypeError, ValueError):
+                level = math.nan
+            if isinstance(thrust_n, bool) or not (math.isfinite(level) and 0 < level <= t_max):
+                raise ValueError(f"thrust_n = {thrust_n!r} is not allowed; it must be in "
+                                 f"(0, {t_max:g}] N, the vehicle's maximum thrust")
+            sc = dataclasses.replace(
+                sc, name=f"{sc.name}@{level / 1e3:.4g}kN",
+                vehicle=dataclasses.replace(sc.vehicle, thrust_n=level))
         init_task(self, sc, dt_s=dt_s, substeps=substeps, time_limit_s=time_limit_s,
                   max_fall_s=max_fall_s, throttle_channel=throttle_channel,
                   success_speed_m_s=success_speed_m_s, cutoff_speed_m_s=cutoff_speed_m_s)
@@ -274,6 +290,7 @@ _DOC = """
     | ``success_speed_m_s``| 5.0        | touchdown speed tolerance of ``is_success``          |
     | ``max_fall_s``      | None        | longest free fall integrated (None: time limit)      |
     | ``cutoff_speed_m_s``| 20.0        | speed minima at or below it cut the engine off       |
+    | ``thrust_n``        | None        | engine level (N) in (0, T_max]; None: T_max          |
     | ``render_mode``     | None        | "rgb_array" or "human"                               |
 
     >>> import gymnasium as gym

@@ -189,6 +189,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fitness-units", choices=("normalised", "si"), default="normalised",
                     help="units of the penalised fitness of eq. (11) (default: normalised)")
     ap.add_argument("--no-plots", action="store_true")
+    ap.add_argument("--variant", choices=("spread", "none"), default="spread",
+                    help="also run ASAGA's documented variant (temperature_scale='spread', "
+                         "the annealing temperature in units of the population's fitness "
+                         "spread) on the same seeds; 'none' skips it")
     ap.add_argument("--no-pontryagin", action="store_true",
                     help="skip the Pontryagin solve (no certification)")
     args = ap.parse_args(argv)
@@ -329,6 +333,33 @@ def main(argv: list[str] | None = None) -> int:
               f"{te['speed_m_s']:.2e} m/s, dr {te['radius_m']:.2e} m; {sol.wall_s:.2f} s")
     else:
         print(f"\nPontryagin: {pmsg}")
+    if args.variant != "none":
+        var = ASAGA(n_generations=n_gen, temperature_scale=args.variant)
+        vruns = [var.solve(problem, seed=np.random.default_rng(ss)) for ss in seeds]
+        vconv = np.array([r.success for r in vruns])
+        vfuel = np.array([r.fuel_kg for r in vruns])
+        vspeed = np.array([r.terminal_errors["speed_m_s"] for r in vruns])
+        vdr = np.abs([r.terminal_errors["radius_m"] for r in vruns])
+        measured["variant"] = {
+            "temperature_scale": args.variant, "n_converged": int(vconv.sum()),
+            "mean_speed_m_s": float(vspeed.mean()), "mean_abs_radius_error_m": float(vdr.mean()),
+            "mean_fuel_kg": float(vfuel.mean()),
+            "mean_gap_converged_kg": (None if opt is None or not vconv.any()
+                                      else float(vfuel[vconv].mean() - opt)),
+            "anneal_acceptance_first_third": float(np.mean(
+                [np.mean(r.extra["history_anneal_acceptance"][:max(1, n_gen // 3)])
+                 for r in vruns])),
+            "runs": [{"converged": bool(c), "fuel_kg": float(r.fuel_kg),
+                      "terminal_errors": {k: float(v) for k, v in r.terminal_errors.items()}}
+                     for r, c in zip(vruns, vconv, strict=True)]}
+        sp = np.array([r.terminal_errors["speed_m_s"] for r in runs])
+        dr = np.abs([r.terminal_errors["radius_m"] for r in runs])
+        print(f"\nASAGA as printed vs variant temperature_scale={args.variant!r} (same seeds):")
+        print(f"  converged        {int(conv.sum())}/{n_runs}  vs  {int(vconv.sum())}/{n_runs}")
+        print(f"  mean |dV| (m/s)  {sp.mean():.3f}  vs  {vspeed.mean():.3f}")
+        print(f"  mean |dr| (m)    {dr.mean():.1f}  vs  {vdr.mean():.1f}")
+        print(f"  mean fuel (kg)   {fuel.mean():.4f}  vs  {vfuel.mean():.4f}"
+              + ("" if opt is None else f"  (optimum {opt:.4f})"))
     if not args.no_plots:
         paths = _plots(args.out, problem, runs, best_i, sol, args.fitness_units)
         measured["plots"] = paths
