@@ -7,7 +7,10 @@
    run_tasks` with a result store (what a study does), on the local pool with 1 and with 2
    workers, and on Ray with 2 CPUs. Reported: wall time, tasks/s, and the speed-up
    ``wall(1 worker) / wall(2 workers)`` (target >= 1.8) and ``wall(local 2) / wall(Ray 2)``.
-   Workers are started before the clock starts (a warm-up task per worker).
+   Every executor is started and warmed up (ASAGA's kernels loaded in each worker) before any
+   clock runs; the configurations are then timed in turn, ``--repeats`` times, and the ratios
+   are medians of the per-repeat ratios (a change of the machine's load between repeats hits
+   all configurations alike).
 2. A real study: ASAGA runs on the [000] landing (``optimizers.study.run_one``, no
    certification), 1 against 2 local workers and Ray.
 3. Per-task overhead: ``n_noop`` no-op tasks (:func:`~optimizers.common.probe_tasks.noop`)
@@ -28,6 +31,8 @@ import os
 import sys
 import tempfile
 import time
+
+import numpy as np
 
 from optimizers.common import probe_tasks as pt
 from optimizers.common.executor import (
@@ -70,53 +75,69 @@ def _asaga_tasks(n: int, n_gen: int, tag: str):
             for i in range(n)]
 
 
-def bench(quick: bool, address: str | None, use_ray: bool) -> dict:
-    n_tasks, cpu_s = (8, 0.5) if quick else (24, 1.0)
-    n_asaga, n_gen = (4, 60) if quick else (12, 150)
+def bench(quick: bool, address: str | None, use_ray: bool, repeats: int) -> dict:
+    n_tasks, cpu_s = (8, 0.25) if quick else (12, 0.5)
+    n_asaga, n_gen = (4, 40) if quick else (8, 100)
     n_noop = 300 if quick else 2000
-    rows: dict[str, dict] = {}
     tmp = tempfile.mkdtemp(prefix="bench_executor_")
-    executors = [("local, 1 worker", lambda: LocalExecutor(1)),
-                 ("local, 2 workers", lambda: LocalExecutor(2))]
+    makers = [("local, 1 worker", lambda: LocalExecutor(1)),
+              ("local, 2 workers", lambda: LocalExecutor(2))]
     if use_ray:
-        executors.append(("Ray, 2 CPUs", lambda: RayExecutor(address or "local", num_cpus=2)
-                          if (address or "local") == "local" else RayExecutor(address)))
-    # in-process reference for the overhead loop
+        addr = address or "local"
+        makers.append(("Ray, 2 CPUs", lambda: RayExecutor(addr, num_cpus=2)
+                       if addr == "local" else RayExecutor(addr)))
     t0 = time.perf_counter()
     run_tasks([Task(TaskKey("noop-inproc", 0, i), pt.noop, (i,)) for i in range(n_noop)])
     inproc_ms = 1e3 * (time.perf_counter() - t0) / n_noop
-    for name, make in executors:
-        t_start = time.perf_counter()
-        ex = make()
-        try:
+    executors, startup = {}, {}
+    try:
+        for name, make in makers:  # all started and warm before any clock runs
+            t_start = time.perf_counter()
+            ex = make()
             _warm(ex, ex.n_workers)
-            start_s = time.perf_counter() - t_start
-            tag = name.split(",")[0].lower() + str(ex.n_workers)
-            w_spin = _timed(ex, _spin_tasks(n_tasks, cpu_s, tag), f"{tmp}/{tag}-spin")
-            w_asaga = _timed(ex, _asaga_tasks(n_asaga, n_gen, tag), f"{tmp}/{tag}-asaga")
-            t0 = time.perf_counter()
-            run_tasks([Task(TaskKey(f"noop-{tag}", 0, i), pt.noop, (i,))
-                       for i in range(n_noop)], ex)
-            w_noop = time.perf_counter() - t0
-        finally:
+            executors[name], startup[name] = ex, time.perf_counter() - t_start
+        walls = {name: {"spin": [], "asaga": [], "noop": []} for name in executors}
+        # the configurations are timed in turn within each repeat, so a change of the machine's
+        # load between repeats affects all of them alike; ratios are per repeat, then medians
+        for rep in range(repeats):
+            for name, ex in executors.items():
+                tag = f"{name.split(',')[0].lower()}{ex.n_workers}-r{rep}"
+                walls[name]["spin"].append(_timed(ex, _spin_tasks(n_tasks, cpu_s, tag),
+                                                  f"{tmp}/{tag}-spin"))
+                walls[name]["asaga"].append(_timed(ex, _asaga_tasks(n_asaga, n_gen, tag),
+                                                   f"{tmp}/{tag}-asaga"))
+                t0 = time.perf_counter()
+                run_tasks([Task(TaskKey(f"noop-{tag}", 0, i), pt.noop, (i,))
+                           for i in range(n_noop)], ex)
+                walls[name]["noop"].append(time.perf_counter() - t0)
+                print(f"  repeat {rep + 1}/{repeats}, {name}: CPU study "
+                      f"{walls[name]['spin'][-1]:.2f} s, ASAGA study "
+                      f"{walls[name]['asaga'][-1]:.2f} s, "
+                      f"{1e3 * walls[name]['noop'][-1] / n_noop:.2f} ms/no-op task", flush=True)
+    finally:
+        for ex in executors.values():
             ex.close()
-        rows[name] = {"n_workers": ex.n_workers, "startup_s": start_s,
-                      "spin_wall_s": w_spin, "spin_tasks_per_s": n_tasks / w_spin,
-                      "asaga_wall_s": w_asaga, "asaga_runs_per_min": 60 * n_asaga / w_asaga,
-                      "overhead_ms_per_task": 1e3 * w_noop / n_noop}
-        print(f"  {name}: start {start_s:.1f} s, spin study {w_spin:.2f} s, ASAGA study "
-              f"{w_asaga:.2f} s, {1e3 * w_noop / n_noop:.2f} ms/no-op task", flush=True)
-    one, two = rows["local, 1 worker"], rows["local, 2 workers"]
-    ratios = {"speedup_spin_2_vs_1": one["spin_wall_s"] / two["spin_wall_s"],
-              "speedup_asaga_2_vs_1": one["asaga_wall_s"] / two["asaga_wall_s"]}
-    if "Ray, 2 CPUs" in rows:
-        ray = rows["Ray, 2 CPUs"]
-        ratios.update(ray_vs_local_spin=two["spin_wall_s"] / ray["spin_wall_s"],
-                      ray_vs_local_asaga=two["asaga_wall_s"] / ray["asaga_wall_s"])
-    return {"settings": {"quick": quick, "n_spin_tasks": n_tasks, "cpu_s_per_spin_task": cpu_s,
-                         "n_asaga_runs": n_asaga, "asaga_generations": n_gen,
-                         "n_noop_tasks": n_noop, "address": address or "local",
-                         "cpu_count": os.cpu_count(), "loadavg_at_start": os.getloadavg()},
+    med = lambda v: float(np.median(v))  # noqa: E731
+    rows = {}
+    for name, w in walls.items():
+        rows[name] = {"n_workers": executors[name].n_workers, "startup_s": startup[name],
+                      "spin_wall_s": med(w["spin"]), "spin_tasks_per_s": n_tasks / med(w["spin"]),
+                      "asaga_wall_s": med(w["asaga"]),
+                      "asaga_runs_per_min": 60 * n_asaga / med(w["asaga"]),
+                      "overhead_ms_per_task": 1e3 * med(w["noop"]) / n_noop, "walls": w}
+    one, two = walls["local, 1 worker"], walls["local, 2 workers"]
+    ratio = lambda a, b, k: med(np.array(a[k]) / np.array(b[k]))  # noqa: E731
+    ratios = {"speedup_spin_2_vs_1": ratio(one, two, "spin"),
+              "speedup_asaga_2_vs_1": ratio(one, two, "asaga")}
+    if "Ray, 2 CPUs" in walls:
+        ray = walls["Ray, 2 CPUs"]
+        ratios.update(ray_vs_local_spin=ratio(two, ray, "spin"),
+                      ray_vs_local_asaga=ratio(two, ray, "asaga"))
+    return {"settings": {"quick": quick, "repeats": repeats, "n_spin_tasks": n_tasks,
+                         "cpu_s_per_spin_task": cpu_s, "n_asaga_runs": n_asaga,
+                         "asaga_generations": n_gen, "n_noop_tasks": n_noop,
+                         "address": address or "local", "cpu_count": os.cpu_count(),
+                         "loadavg_at_start": os.getloadavg()},
             "rows": rows, "ratios": ratios, "in_process_ms_per_task": inproc_ms}
 
 
@@ -124,7 +145,8 @@ def table(res: dict) -> str:
     s = res["settings"]
     lines = [f"CPU-bound study: {s['n_spin_tasks']} tasks × {s['cpu_s_per_spin_task']} s CPU; "
              f"ASAGA study: {s['n_asaga_runs']} runs × {s['asaga_generations']} generations; "
-             f"overhead: {s['n_noop_tasks']} no-op tasks; load average at start "
+             f"overhead: {s['n_noop_tasks']} no-op tasks; medians of {s['repeats']} repeats; "
+             f"load average at start "
              f"{s['loadavg_at_start'][0]:.1f} on {s['cpu_count']} cores",
              "",
              "| executor | start (s) | CPU study wall (s) | tasks/s | ASAGA study wall (s) | "
@@ -152,6 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--address", default=None,
                     help="Ray cluster (default: a private local instance with 2 CPUs)")
     ap.add_argument("--no-ray", action="store_true", help="local pool only")
+    ap.add_argument("--repeats", type=int, default=None,
+                    help="interleaved repeats (default 3; quick 2)")
     args = ap.parse_args(argv)
     use_ray = not args.no_ray
     if use_ray:
@@ -161,7 +185,8 @@ def main(argv: list[str] | None = None) -> int:
             print("Ray is not installed (pip install -e '.[ray]'); local pool only",
                   file=sys.stderr)
             use_ray = False
-    res = bench(args.quick, args.address, use_ray)
+    repeats = args.repeats or (2 if args.quick else 3)
+    res = bench(args.quick, args.address, use_ray, repeats)
     print()
     print(table(res))
     if args.json:
