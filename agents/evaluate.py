@@ -385,8 +385,9 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
             optimum_workers: int = 1, optimum_executor=None) -> dict[str, Any]:
     """Run ``policies`` and the optimiser baselines over one case set; return the report dict.
 
-    ``optimum_executor`` (:mod:`optimizers.common.executor`) runs the planar per-case optima
-    (default: this process); the pinpoint optima use ``optimum_workers`` processes.
+    ``optimum_executor`` (:mod:`optimizers.common.executor`, e.g. Ray) runs the per-case optima
+    (default: this process for the planar ones, ``optimum_workers`` processes for the pinpoint
+    ones).
 
     Keys: ``env_id``, ``seed``, ``n_states``, ``rows`` (one summary per policy, see the module
     docstring), ``optimum`` (per-case optimal fuel summary and solver wall time), ``results``
@@ -421,7 +422,8 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
             print(f"Per-case optimum of {n_states} states (GPM + direct shooting, cached)...",
                   flush=True)
         t0 = time.perf_counter()
-        sols = pinpoint_optima(scenario, states, workers=optimum_workers, progress=progress)
+        sols = pinpoint_optima(scenario, states, workers=optimum_workers, progress=progress,
+                               executor=optimum_executor)
         opt_fuel = np.array([s.fuel_kg if s.success else np.nan for s in sols])
         opt_tf = np.array([s.tf_s if s.success else np.nan for s in sols])
         opt_info = {"solver": "agents.pinpoint_optimum (serial GPM + direct shooting)",
@@ -670,7 +672,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--optimum-workers", type=int, default=1,
                    help="processes for the per-case optimum (pinpoint: cached on disk)")
     p.add_argument("--address", default=None,
-                   help="Ray cluster for the planar per-case optima ('auto', 'host:port', "
+                   help="Ray cluster for the per-case optima ('auto', 'host:port', "
                         "'local'); default $RAY_ADDRESS, else --optimum-workers local processes")
     args = p.parse_args(argv)
     import torch

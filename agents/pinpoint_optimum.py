@@ -253,7 +253,7 @@ def _order(states: np.ndarray) -> np.ndarray:
 
 def pinpoint_optima(scenario, states_nd, *, workers: int = 1,
                     cache_dir: str | Path | None = None, use_cache: bool = True,
-                    progress: bool = True) -> list[PinpointOptimum]:
+                    progress: bool = True, executor=None) -> list[PinpointOptimum]:
     """Per-case optima of normalised initial states ``states_nd`` (n, 7), in input order.
 
     Parameters
@@ -268,6 +268,10 @@ def pinpoint_optima(scenario, states_nd, *, workers: int = 1,
         False: solve everything and write nothing.
     progress : bool
         tqdm bar over the cases still to solve.
+    executor : optimizers.common.executor.Executor, optional
+        Runs the chunks instead of ``workers`` local processes (e.g. a Ray cluster; the cache
+        is written by the workers, so on several machines it must be on a shared filesystem).
+        The caller keeps ownership.
     """
     states = np.asarray(states_nd, dtype=np.float64)
     if states.ndim != 2 or states.shape[1] != 7:
@@ -293,7 +297,7 @@ def pinpoint_optima(scenario, states_nd, *, workers: int = 1,
         bar = tqdm(total=len(todo), desc=f"per-case optimum {scenario.name}", unit="case")
     try:
         n_work = min(int(workers), max(len(todo) // 8, 1))
-        if n_work == 1:
+        if n_work == 1 and executor is None:
             for i in todo:  # one at a time so the bar moves; the warm start carries over
                 opt = solve_case(scenario, states[i],
                                  _last_success(results, todo))
@@ -303,20 +307,27 @@ def pinpoint_optima(scenario, states_nd, *, workers: int = 1,
                 if bar is not None:
                     bar.update(1)
         else:
-            import multiprocessing as mp
-            from concurrent.futures import ProcessPoolExecutor, as_completed
+            from optimizers.common.executor import LocalExecutor, Task, TaskKey, run_tasks
 
-            chunks = np.array_split(todo, n_work * 4)
-            ctx = mp.get_context("spawn")
-            with ProcessPoolExecutor(max_workers=n_work, mp_context=ctx) as pool:
-                futs = {pool.submit(_chain, scenario, states[c], [paths[i] for i in c]): c
-                        for c in chunks if len(c)}
-                for fut in as_completed(futs):
-                    c = futs[fut]
-                    for i, opt in zip(c, fut.result(), strict=True):
-                        results[i] = opt
-                    if bar is not None:
-                        bar.update(len(c))
+            n_split = max(executor.n_workers if executor is not None else n_work, 1) * 4
+            chunks = [c for c in np.array_split(todo, min(n_split, len(todo))) if len(c)]
+            tasks = [Task(TaskKey(f"pinpoint-{scenario.name}", 0, k), _chain,
+                          (scenario, states[c], [paths[i] for i in c]))
+                     for k, c in enumerate(chunks)]
+
+            def _collect(task, opts):
+                c = chunks[task.key.index]
+                for i, opt in zip(c, opts, strict=True):
+                    results[i] = opt
+                if bar is not None:
+                    bar.update(len(c))
+
+            ex = executor if executor is not None else LocalExecutor(n_work)
+            try:
+                run_tasks(tasks, ex, on_result=_collect)
+            finally:
+                if executor is None:
+                    ex.close()
     finally:
         if bar is not None:
             bar.close()

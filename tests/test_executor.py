@@ -12,6 +12,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from optimizers.common import probe_tasks as pt
@@ -249,3 +250,22 @@ def test_solve_many_on_an_executor_matches_serial():
     for a, b in zip(serial, chunked, strict=True):
         assert a.success and b.success
         assert abs(a.fuel_kg - b.fuel_kg) < 1e-6 * a.fuel_kg
+
+
+@pytest.mark.slow
+def test_pinpoint_optima_on_an_executor(tmp_path):
+    """The pinpoint per-case optima of agents.evaluate through the executor: chunks are keyed
+    tasks, every case solved once and cached (slow: ~1.5 min of GPM solves on a loaded machine;
+    the quick version of the routing is test_solve_many_on_an_executor_matches_serial)."""
+    import gymnasium as gym
+
+    import agents.pinpoint_optimum as po
+    import lunar_env  # noqa: F401
+    from agents.evaluate import initial_states
+
+    scenario = gym.make("LunarPinpointLanding-v0").unwrapped.scenario
+    states = initial_states("LunarPinpointLanding-v0", 2, 2026)
+    opts = po.pinpoint_optima(scenario, states, cache_dir=tmp_path, progress=False,
+                              executor=LocalExecutor(0))
+    assert all(o.success for o in opts) and len(list(tmp_path.glob("*.npz"))) == 2
+    np.testing.assert_allclose([o.states_nd[0] for o in opts], states, rtol=0, atol=1e-12)
