@@ -23,6 +23,7 @@ ALGORITHMS: dict[str, tuple[str, dict[str, Any]]] = {
     "aia": ("optimizers.evolutionary.gaia:AIA", {"n_generations": 10}),
     "aga": ("optimizers.evolutionary.aga:AGA", {"n_generations": 10}),
     "ea": ("optimizers.evolutionary.ea:EA", {"n_generations": 10}),
+    "fga": ("optimizers.evolutionary.fga:FGA", {"n_generations": 30}),
     "pygmo-cmaes": ("optimizers.study.pygmo_algorithms:PygmoCMAES", {"n_generations": 30}),
     "pygmo-sade": ("optimizers.study.pygmo_algorithms:PygmoSADE", {"n_generations": 30}),
     "pygmo-pso": ("optimizers.study.pygmo_algorithms:PygmoPSO", {"n_generations": 30}),
@@ -37,6 +38,8 @@ PROBLEMS: dict[str, tuple[str, dict[str, Any]]] = {
     # [002] Peng et al. Earth–Mars low-thrust transfer
     "peng_mars": ("optimizers.problems.low_thrust:LowThrustTransferProblem",
                   {"scenario": "peng_mars"}),
+    # [003] Wang 2003 thrust-magnitude design of the descent
+    "wang2003": ("optimizers.problems.thrust_design:ThrustDesignProblem", {"scenario": "wang2003"}),
     # [004] Wang 2001 two-impulse transfer (K = 1: minimum ΔV)
     "wang2001": ("optimizers.problems.two_impulse:TwoImpulseProblem", {"k_weight": 1.0}),
 }
