@@ -317,9 +317,10 @@ def main(argv: list[str] | None = None) -> int:
                         for k, r in enumerate(runs)]
     measured["n_success"] = len(ok)
     if runs:
-        pool = ok or runs
-        key = (lambda r: r.fuel_kg) if ok else (lambda r: -r.extra["fitness"])
-        best_i = runs.index(min(pool, key=key))
+        # indices, not list.index: OptimResult compares arrays field by field
+        pool = [i for i, r in enumerate(runs) if r.success] or list(range(len(runs)))
+        key = ((lambda i: runs[i].fuel_kg) if ok else (lambda i: -runs[i].extra["fitness"]))
+        best_i = min(pool, key=key)
         measured["fga_mean_fuel_kg_successful"] = (float(np.mean([r.fuel_kg for r in ok]))
                                                    if ok else math.nan)
         measured["fga_best"] = measured["runs"][best_i]
