@@ -80,6 +80,11 @@ class PinpointOCP(OCP):
     #: only the end); ``LunarPinpointLanding-v*`` ends an episode wherever the lander crosses the
     #: 2 km gate sphere, so the env's own per-case optimum uses the gate altitude here.
     min_altitude_m: float = 0.0
+    #: extra clearance above that floor away from the target (m): the path must stay
+    #: ``floor_margin_m · d²/(d² + floor_margin_range_m²)`` above it, d the distance to the
+    #: target point (a state-only, smooth floor that vanishes at the target). 0: none.
+    floor_margin_m: float = 0.0
+    floor_margin_range_m: float = 5000.0
     params: dyn.Moon3DParams = field(init=False, repr=False)
     x0_nd: np.ndarray = field(init=False, repr=False)
     target_position_nd: np.ndarray = field(init=False, repr=False)
@@ -98,8 +103,13 @@ class PinpointOCP(OCP):
         if not isinstance(sc, PinpointScenario):
             raise TypeError(f"scenario must be a PinpointScenario (e.g. get_scenario('peng2012'))"
                             f", got {type(sc).__name__}")
-        if not (np.isfinite(self.min_altitude_m) and self.min_altitude_m >= 0.0):
-            raise ValueError(f"min_altitude_m = {self.min_altitude_m!r} must be finite and >= 0")
+        for name in ("min_altitude_m", "floor_margin_m"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0.0):
+                raise ValueError(f"{name} = {v!r} must be finite and >= 0")
+        if not (np.isfinite(self.floor_margin_range_m) and self.floor_margin_range_m > 0):
+            raise ValueError(f"floor_margin_range_m = {self.floor_margin_range_m!r} must be "
+                             "finite and > 0")
         s = sc.scaling()
         t = sc.target
         object.__setattr__(self, "params", sc.params(s))
@@ -208,6 +218,16 @@ class PinpointOCP(OCP):
         u, w = self.uw(state)
         b = self.uw_bound_nd
         r2 = state[dyn.X] ** 2 + state[dyn.Y] ** 2 + state[dyn.Z] ** 2
+        if self.floor_margin_m > 0:
+            s = self.scaling
+            tp = self.target_position_nd
+            d2 = ((state[dyn.X] - tp[0]) ** 2 + (state[dyn.Y] - tp[1]) ** 2
+                  + (state[dyn.Z] - tp[2]) ** 2)
+            big_d2 = float(s.length_nd(self.floor_margin_range_m)) ** 2
+            clearance = ca.sqrt(r2) - self.floor_radius_nd - float(
+                s.length_nd(self.floor_margin_m)) * d2 / (d2 + big_d2)
+            return (ca.vertcat(u, w, clearance), np.array([-b, -b, 0.0]),
+                    np.array([b, b, np.inf]))
         return (ca.vertcat(u, w, r2), np.array([-b, -b, self.floor_radius_nd ** 2]),
                 np.array([b, b, np.inf]))
 

@@ -284,7 +284,9 @@ def _solver(problem, **kwargs) -> SerialSolver:
     if isinstance(problem, str):
         problem = get_scenario(problem)
     sc = problem.scenario if isinstance(problem, PinpointOCP) else problem
-    key = (id(sc), getattr(problem, "min_altitude_m", 0.0), tuple(sorted(kwargs.items())))
+    key = (id(sc), getattr(problem, "min_altitude_m", 0.0), getattr(problem, "floor_margin_m",
+                                                                     0.0),
+           getattr(problem, "floor_margin_range_m", 0.0), tuple(sorted(kwargs.items())))
     if key not in _SOLVERS or _SOLVERS[key].ocp.scenario is not sc:
         _SOLVERS[key] = SerialSolver(problem, **kwargs)
     return _SOLVERS[key]
