@@ -182,7 +182,10 @@ class FGA(EvolutionaryAlgorithm):
 
     def _generation(self, problem, state, g, lb, ub, rng):
         X, F = state["X"], state["F"]
-        f = self.fitness(problem, F, g)
+        # a static weight leaves the survivors' penalised fitness unchanged: carry it
+        f = state.get("f") if not callable(self.penalty_weight) else None
+        if f is None or len(f) != len(F):
+            f = self.fitness(problem, F, g)
         order = np.argsort(-f, kind="stable")
         elite = order[:self.n_elite]
         hist = state["history"]
@@ -193,6 +196,8 @@ class FGA(EvolutionaryAlgorithm):
         Fc = problem.batch_fitness(children)
         state["X"] = np.concatenate([X[elite], children])
         state["F"] = np.concatenate([F[elite], Fc])
+        if not callable(self.penalty_weight):
+            state["f"] = np.concatenate([f[elite], self.fitness(problem, Fc, g)])
 
     def _best(self, problem, state, generation):
         return int(np.argmax(self.fitness(problem, state["F"], generation)))
