@@ -575,7 +575,9 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     finally:
         signal.signal(signal.SIGTERM, old_handler)
     wall = time.perf_counter() - t0
-    if ckpt_cb.model is not None and ckpt_cb._last_saved != model.num_timesteps:
+    # (no learn() call when a run killed after its final checkpoint is resumed: the callback
+    # was never attached, and the final checkpoint is already the final state)
+    if getattr(ckpt_cb, "model", None) is not None and ckpt_cb._last_saved != model.num_timesteps:
         ckpt_cb.save_now()  # the newest checkpoint is the final state: --resume can extend it
     vn = model.get_vec_normalize_env()
     if vn is not None:

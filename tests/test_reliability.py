@@ -424,6 +424,13 @@ def _compare_with_uninterrupted(run_dir, ref_dir):
         yaml.safe_load((ref_dir / "config.yml").read_text())
 
 
+def test_run_killed_after_its_final_checkpoint_resumes(run_copy):
+    """Killed between the final checkpoint and model.zip: the resume has nothing left to train
+    and used to fail with AttributeError (found by the random kill test)."""
+    assert _resume(run_copy) == 0
+    assert _steps_of(run_copy) == 256
+
+
 def test_training_killed_at_a_random_point_resumes(tmp_path):
     rng = random.Random()
     run_dir = _kill_and_resume_training(tmp_path, seed=4, n=320, rng=rng)
