@@ -9,7 +9,7 @@
 
 Each trial trains PPO with the shipped entry of the env (``agents/hyperparams/ppo.yml``, the
 ``--config``/``--quick`` profile, ``--hyperparams`` overrides) with the sampled values merged
-over it, through :func:`agents.train.train` itself (same curriculum, features, shaping,
+over it, through :func:`agents.training.train` itself (same curriculum, features, shaping,
 normalisation), for ``n_timesteps`` (``-n``) steps. ``--n-evaluations`` times during training
 the deterministic policy flies ``--eval-states`` dispersed initial states (seed
 ``--tune-seed``, not the final evaluation's 2026) and the score is reported to Optuna; the
@@ -151,7 +151,7 @@ def run_trial(storage_url: str, study_name: str, index: int, hp_base: dict, run_
 
     from agents.evaluate import SB3Policy, rollout
     from agents.hyperparams import apply_overrides
-    from agents.train import train
+    from agents.training import train
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     seed = int(run_base["seed"]) + int(index)

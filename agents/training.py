@@ -1,0 +1,429 @@
+"""The training core of :mod:`agents.train`: build the training env, the callbacks, and run
+or continue one SB3 run in a run directory.
+
+Split from the command line (:mod:`agents.train`) so that tools that train many runs (the
+hyperparameter search, :mod:`agents.optimize`) depend on the core without an import cycle with
+the CLI that dispatches to them.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from agents.hyperparams import (
+    resolve_algo_kwargs,
+)
+from agents.runs import (
+    algo_class,
+    load_trained,
+    resumable_checkpoint,
+    save_model_atomic,
+    save_vecnormalize_atomic,
+    write_text_atomic,
+)
+from agents.runs import latest_checkpoint as latest_checkpoint  # re-export (0.1 API)
+
+__all__ = ["train", "make_training_env", "DEFAULT_ENV_ID"]
+
+DEFAULT_ENV_ID = "LunarSoftLanding-v0"
+#: info keys averaged over finished episodes and written to TensorBoard under ``episode/``
+_EPISODE_INFO_KEYS = ("fuel_used_kg", "touchdown_speed_m_s", "miss_distance_m")
+
+
+def _is_native_env(env_id: str) -> bool:
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401  (registers our ids)
+
+    try:
+        spec = gym.spec(env_id)
+    except gym.error.Error:
+        return False
+    return spec.vector_entry_point is not None and str(spec.entry_point).startswith("lunar_env")
+
+
+def make_training_env(env_id: str, n_envs: int, seed: int | None,
+                      env_kwargs: dict[str, Any] | None = None,
+                      curriculum: dict[str, Any] | None = None, total_timesteps: int = 0,
+                      progress: bool = True, obs_features: list[str] | None = None,
+                      reward_shaping: dict[str, Any] | None = None, gamma: float = 0.99):
+    """Build the SB3 ``VecEnv`` to train on (no normalisation wrapper).
+
+    Our env ids go through the natively batched vector env (:func:`agents.vec_env.
+    make_sb3_vec_env`); other Gymnasium ids through SB3's ``make_vec_env`` (``DummyVecEnv``).
+    ``curriculum`` (the YAML mapping) wraps the batch in :class:`agents.curriculum.
+    OptimalStartCurriculum` annealed over ``total_timesteps``; ``obs_features`` (names of
+    :mod:`agents.features`) appends derived features to the observations
+    (:class:`agents.features.ObsFeatureWrapper`, outside the curriculum); ``reward_shaping``
+    (YAML mapping) adds the potential-based shaping of :class:`agents.shaping.PotentialShaping`
+    with discount ``gamma`` (training only: evaluation measures landings, not rewards). Episode
+    statistics are recorded by ``VecMonitor`` when the adapter does not already (they show the
+    shaped return when shaping is on).
+    """
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import VecMonitor
+    from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
+
+    env_kwargs = dict(env_kwargs or {})
+    if n_envs < 1:
+        raise ValueError(f"n_envs={n_envs} must be >= 1")
+    if _is_native_env(env_id):
+        from agents.vec_env import make_sb3_vec_env
+
+        venv = make_sb3_vec_env(env_id, n_envs, seed=seed, **env_kwargs)
+        if curriculum:
+            from agents.curriculum import OptimalStartCurriculum
+
+            venv = OptimalStartCurriculum(venv, total_timesteps=total_timesteps,
+                                          seed=0 if seed is None else int(seed),
+                                          progress=progress, **curriculum)
+        if reward_shaping:
+            from agents.shaping import PotentialShaping
+
+            venv = PotentialShaping(venv, gamma=gamma, **reward_shaping)
+        if obs_features:
+            from agents.features import ObsFeatureWrapper
+
+            venv = ObsFeatureWrapper(venv, obs_features)
+    else:
+        if curriculum or obs_features or reward_shaping:
+            raise ValueError("curriculum, obs_features and reward_shaping are only available for "
+                             "lunar_env ids, "
+                             f"not {env_id!r}")
+        venv = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
+        return venv  # make_vec_env already wraps each env in Monitor
+    node, monitored = venv, False
+    while True:
+        if isinstance(node, VecMonitor):
+            monitored = True
+            break
+        if not isinstance(node, VecEnvWrapper):
+            break
+        node = node.venv
+    if not monitored:
+        venv = VecMonitor(venv)
+    return venv
+
+
+def _find_wrapper(venv, class_name: str):
+    """The first wrapper named ``class_name`` in a VecEnv wrapper chain, or None."""
+    node = venv
+    while node is not None:
+        if type(node).__name__ == class_name:
+            return node
+        node = getattr(node, "venv", None)
+    return None
+
+
+def _normalize_kwargs(normalize: Any, gamma: float | None) -> dict[str, Any] | None:
+    if normalize in (None, False):
+        return None
+    if normalize is True:
+        kw: dict[str, Any] = {}
+    elif isinstance(normalize, dict):
+        kw = dict(normalize)
+    else:
+        raise ValueError(f"normalize={normalize!r}: expected true/false or a mapping of "
+                         "VecNormalize arguments")
+    if gamma is not None:
+        kw.setdefault("gamma", gamma)
+    return kw
+
+
+# ----------------------------------------------------------------------------- callbacks
+
+
+def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
+    from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
+
+    class RolloutCheckpointCallback(CheckpointCallback):
+        """``CheckpointCallback`` that saves between rollouts, every ``save_freq`` env steps.
+
+        The save happens at the *start* of the next rollout, i.e. after the algorithm trained on
+        the previous one (SB3 calls ``on_rollout_end`` *before* ``train()``: a checkpoint taken
+        there counted a rollout the model had not learnt from, and a resumed run never trained
+        on it — issue 18, found by the kill-and-resume test). A resumed run therefore restarts
+        from a state where every counted step has been trained on exactly once. The
+        ``VecNormalize`` statistics, the replay buffer (off-policy) and the run's config are
+        saved alongside. ``save_freq`` counts env steps (all envs together), not calls.
+        """
+
+        def __init__(self) -> None:
+            super().__init__(save_freq=1, save_path=str(run_dir / "checkpoints"),
+                             name_prefix="rl_model", save_replay_buffer=True,
+                             save_vecnormalize=True, verbose=0)
+            self.save_every_steps = max(int(save_freq), 1)
+            self._last_saved = None
+            self.on_save = None  # called after every checkpoint (timing bookkeeping)
+
+        def _on_training_start(self) -> None:
+            self._last_saved = self.model.num_timesteps
+            self._last_trained = self.model.num_timesteps
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_rollout_start(self) -> None:
+            # the previous rollout (if any) has been collected *and* trained on
+            self._last_trained = self.model.num_timesteps
+            if self.model.num_timesteps - self._last_saved >= self.save_every_steps:
+                self.save_now()
+
+        def save_now(self, interrupted: bool = False) -> Path:
+            """Write the checkpoint for the current ``num_timesteps`` and return its path.
+
+            ``interrupted``: called in the middle of a rollout (or of its training). An
+            on-policy algorithm has not trained on the partial rollout, so its step counter is
+            rolled back to the last trained rollout: the resumed run collects those steps again
+            and ends after exactly as many trained steps as an uninterrupted run.
+            """
+            from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
+
+            if interrupted and isinstance(self.model, OnPolicyAlgorithm):
+                self.model.num_timesteps = self._last_trained
+            self.num_timesteps = self.model.num_timesteps  # the parent names files after this
+            path = Path(self._checkpoint_path(extension="zip"))
+            path.parent.mkdir(parents=True, exist_ok=True)
+            # statistics and replay buffer first, the model last (each atomically): a model
+            # file therefore implies a complete checkpoint
+            vn = self.model.get_vec_normalize_env()
+            if vn is not None:
+                save_vecnormalize_atomic(vn, self._checkpoint_path("vecnormalize_", "pkl"))
+            if getattr(self.model, "replay_buffer", None) is not None:
+                rb = Path(self._checkpoint_path("replay_buffer_", "pkl"))
+                tmp = rb.with_name(f".{rb.name}.tmp.pkl")
+                self.model.save_replay_buffer(tmp)
+                os.replace(tmp, rb)
+            save_model_atomic(self.model, path)
+            cfg = path.parent / "config.yml"
+            if not cfg.exists():
+                write_text_atomic(cfg, yaml.safe_dump(config, sort_keys=True))
+            self._last_saved = self.model.num_timesteps
+            if self.on_save is not None:
+                self.on_save()
+            return path
+
+    class EpisodeInfoCallback(BaseCallback):
+        """Log the mean SI landing quantities of finished episodes (``episode/*``) and, every
+        ``summary_every`` env steps, print one summary line of the episodes finished since the
+        previous line (success rate, gate/touchdown speed, miss distance, fuel)."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self._acc: dict[str, list[float]] = {k: [] for k in _EPISODE_INFO_KEYS}
+            self._console: dict[str, list[float]] = {k: [] for k in (*_EPISODE_INFO_KEYS,
+                                                                       "is_success")}
+            self.summary_every = 0
+            self.total_timesteps = 0
+            self._next_summary = 0
+            self._t0 = time.perf_counter()
+
+        def _on_training_start(self) -> None:
+            self._t0 = time.perf_counter()
+            if self.summary_every > 0:
+                self._next_summary = self.model.num_timesteps + self.summary_every
+
+        def _summary_line(self) -> str | None:
+            c = self._console
+            n = len(c["is_success"])
+            if n == 0:
+                return None
+            parts = [f"step {self.model.num_timesteps:,}/{self.total_timesteps:,}",
+                     f"{n} episodes", f"success {100 * np.mean(c['is_success']):.1f} %"]
+            labels = {"touchdown_speed_m_s": ("touchdown", "m/s", ".1f"),
+                      "miss_distance_m": ("miss", "m", ".0f"),
+                      "fuel_used_kg": ("fuel", "kg", ".1f")}
+            for key, (label, unit, spec) in labels.items():
+                if c[key]:
+                    parts.append(f"{label} {format(float(np.mean(c[key])), spec)} {unit}")
+            parts.append(f"{time.perf_counter() - self._t0:.0f} s")
+            for v in c.values():
+                v.clear()
+            return " | ".join(parts)
+
+        def _on_step(self) -> bool:
+            dones = self.locals.get("dones")
+            infos = self.locals.get("infos")
+            if dones is None or infos is None:
+                return True
+            for i in np.flatnonzero(dones):
+                info = infos[i]
+                for k in _EPISODE_INFO_KEYS:
+                    v = info.get(k)
+                    if v is not None and np.isfinite(v):
+                        self._acc[k].append(float(v))
+                        self._console[k].append(float(v))
+                self._console["is_success"].append(float(bool(info.get("is_success"))))
+            return True
+
+        def _on_rollout_end(self) -> None:
+            cur = _find_wrapper(self.training_env, "OptimalStartCurriculum")
+            if cur is not None:
+                self.logger.record("curriculum/start_prob", cur.current_prob)
+            for k, vals in self._acc.items():
+                if vals:
+                    self.logger.record(f"episode/{k}", float(np.mean(vals)))
+                    vals.clear()
+            if self.summary_every > 0 and self.model.num_timesteps >= self._next_summary:
+                self._next_summary = self.model.num_timesteps + self.summary_every
+                line = self._summary_line()
+                if line:
+                    print(line, flush=True)
+
+    return RolloutCheckpointCallback(), EpisodeInfoCallback()
+
+
+def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False,
+          callbacks: list | None = None, on_resumed=None):
+    """Train (or continue) one run; returns ``(model, run_dir)``.
+
+    ``hp`` are the resolved YAML hyperparameters, ``run`` the run arguments (as in ``args.yml``),
+    ``callbacks`` extra SB3 callbacks. A ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM) raised during
+    training writes a checkpoint and propagates. ``on_resumed()`` is called once a resumed
+    checkpoint has loaded (the CLI records a changed config only then: a failed resume changes
+    nothing in the run directory).
+    """
+    import torch
+    from stable_baselines3.common.utils import set_random_seed
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    algo = run["algo"]
+    seed = int(run["seed"])
+    torch.set_num_threads(max(int(run.get("torch_threads") or 1), 1))
+    set_random_seed(seed)
+    n_envs, n_timesteps = hp["n_envs"], hp["n_timesteps"]
+    venv = make_training_env(run["env"], n_envs, seed, hp.get("env_kwargs"),
+                             curriculum=hp.get("curriculum"), total_timesteps=n_timesteps,
+                             progress=not run.get("no_progress"),
+                             obs_features=hp.get("obs_features"),
+                             reward_shaping=hp.get("reward_shaping"),
+                             gamma=float(hp.get("gamma", 0.99)))
+    tb_dir = None if run.get("no_tensorboard") else str(run_dir / "tb")
+
+    if resume:
+        # the newest *complete* checkpoint; a normalised run never resumes without statistics
+        ckpt, steps, vn_path = resumable_checkpoint(
+            run_dir, needs_vecnormalize=bool(hp.get("normalize")))
+        if vn_path is not None:
+            venv = VecNormalize.load(str(vn_path), venv)
+            venv.training = True
+        model = algo_class(algo).load(ckpt, env=venv, device=run.get("device", "cpu"),
+                                       tensorboard_log=tb_dir)
+        model.verbose = int(run.get("verbose", 0))  # the console of this session
+        rb = ckpt.parent / f"rl_model_replay_buffer_{steps}_steps.pkl"
+        if rb.exists() and hasattr(model, "load_replay_buffer"):
+            model.load_replay_buffer(rb)
+        if model.num_timesteps != steps:
+            raise RuntimeError(f"checkpoint {ckpt} holds num_timesteps={model.num_timesteps}, "
+                               f"expected {steps}")
+        print(f"Resuming {run_dir} from step {steps} of {n_timesteps}")
+        if on_resumed is not None:
+            on_resumed()
+    else:
+        norm_kw = _normalize_kwargs(hp.get("normalize"), hp.get("gamma"))
+        init = None
+        if run.get("init_from"):
+            # "PPO fine-tuned from BC": the new model starts from another model's policy weights.
+            # Decision: an init model saved without VecNormalize statistics acts on raw
+            # observations, so observation normalisation is switched off for this run (reward
+            # normalisation stays as configured); with statistics, they are loaded.
+            init, init_vn, _ = load_trained(run["init_from"], device=run.get("device", "cpu"))
+            if norm_kw is not None and init_vn is None and norm_kw.get("norm_obs", True):
+                norm_kw["norm_obs"] = False
+                print(f"--init-from {run['init_from']}: no VecNormalize statistics, so "
+                      "norm_obs is off (the initial policy expects raw observations)")
+            if norm_kw is not None and init_vn is not None:
+                venv = VecNormalize.load(str(init_vn), venv)
+                venv.training = True
+                norm_kw = None
+        if norm_kw is not None:
+            venv = VecNormalize(venv, **norm_kw)
+        kwargs = resolve_algo_kwargs(hp, algo, n_actions=int(np.prod(venv.action_space.shape)))
+        model = algo_class(algo)(hp.get("policy", "MlpPolicy"), venv, seed=seed,
+                                  device=run.get("device", "cpu"), tensorboard_log=tb_dir,
+                                  verbose=int(run.get("verbose", 0)), **kwargs)
+        if init is not None:
+            # the exploration noise (log_std) stays this run's log_std_init: a cloned policy
+            # carries whatever its trainer left there
+            weights = {k: v for k, v in init.policy.state_dict().items() if k != "log_std"}
+            try:
+                model.policy.load_state_dict(weights, strict=False)
+                missing = set(model.policy.state_dict()) - set(weights) - {"log_std"}
+                if missing:
+                    raise RuntimeError(f"missing weights {sorted(missing)}")
+            except RuntimeError as exc:
+                raise ValueError(
+                    f"--init-from {run['init_from']}: its policy does not match this run's "
+                    f"policy_kwargs {hp.get('policy_kwargs')} ({exc}); pass the same net_arch "
+                    "with --hyperparams") from None
+
+    curriculum = _find_wrapper(venv, "OptimalStartCurriculum")
+    if curriculum is not None:  # continue the annealing schedule where the run stopped
+        curriculum.num_timesteps = model.num_timesteps
+    remaining = n_timesteps - model.num_timesteps
+    save_freq = run.get("save_freq") or max(n_timesteps // 20, 1)
+    ckpt_cb, info_cb = _make_callbacks(run_dir, save_freq, hp)
+    every = run.get("summary_every")
+    info_cb.summary_every = max(n_timesteps // 20, 1) if every is None else max(int(every), 0)
+    info_cb.total_timesteps = n_timesteps
+
+    def _on_sigterm(signum, frame):  # turn SIGTERM into the Ctrl-C path: checkpoint, then exit
+        raise KeyboardInterrupt
+
+    old_handler = signal.signal(signal.SIGTERM, _on_sigterm)
+    t0 = time.perf_counter()
+    steps0 = model.num_timesteps
+    tfile = run_dir / "timing.yml"
+    previous = (yaml.safe_load(tfile.read_text()) or []) if tfile.exists() else []
+
+    def record_timing() -> list:
+        """This session's timing, rewritten atomically at every checkpoint and at the end, so a
+        run killed part-way still accounts for the steps it saved."""
+        wall_s = time.perf_counter() - t0
+        done_steps = model.num_timesteps - steps0
+        session = {"train_wall_s_this_session": wall_s, "steps_this_session": int(done_steps),
+                   "steps_per_s": done_steps / wall_s if wall_s > 0 else float("nan"),
+                   "num_timesteps": int(model.num_timesteps)}
+        write_text_atomic(tfile, yaml.safe_dump(previous + [session]))
+        return previous + [session]
+
+    ckpt_cb.on_save = record_timing
+    try:
+        if remaining > 0:
+            model.learn(total_timesteps=remaining,
+                        callback=[ckpt_cb, info_cb, *(callbacks or [])],
+                        reset_num_timesteps=not resume, tb_log_name="run",
+                        progress_bar=not run.get("no_progress"))
+    except KeyboardInterrupt:
+        path = ckpt_cb.save_now(interrupted=True)
+        print(f"\nInterrupted at step {model.num_timesteps}; checkpoint {path}.\n"
+              f"Continue with: python train.py --resume {run_dir}", file=sys.stderr)
+        venv.close()
+        raise
+    finally:
+        signal.signal(signal.SIGTERM, old_handler)
+    wall = time.perf_counter() - t0
+    # (no learn() call when a run killed after its final checkpoint is resumed: the callback
+    # was never attached, and the final checkpoint is already the final state)
+    if getattr(ckpt_cb, "model", None) is not None and ckpt_cb._last_saved != model.num_timesteps:
+        ckpt_cb.save_now()  # the newest checkpoint is the final state: --resume can extend it
+    vn = model.get_vec_normalize_env()
+    if vn is not None:
+        save_vecnormalize_atomic(vn, run_dir / "vecnormalize.pkl")
+    save_model_atomic(model, run_dir / "model.zip")
+    sessions = record_timing()
+    total_wall = sum(s["train_wall_s_this_session"] for s in sessions)
+    print(f"Trained {model.num_timesteps} steps; this session {sessions[-1]['steps_this_session']}"
+          f" steps in {wall:.1f} s ({sessions[-1]['steps_per_s']:.0f} steps/s); total training "
+          f"wall time {total_wall:.1f} s. "
+          f"Model: {run_dir / 'model.zip'}")
+    venv.close()
+    return model, run_dir
