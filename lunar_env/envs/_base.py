@@ -84,30 +84,12 @@ def check_reset_options(options, n_state: int, num_envs: int | None = None) -> N
             _check_state_option(key, options[key], n_state, num_envs)
 
 
-class LanderEnv(gym.Env):
-    """Base of the single-lander envs (see the subclasses for the manual)."""
+class _TaskDescription:
+    """What policies and wrappers may rely on, for the single and the vector env alike (read
+    from the env's task object ``self._task`` of class ``_task_cls``)."""
 
-    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
-    _task_cls: type = None  # set by subclasses
+    _task_cls: type = None
 
-    def __init__(self, render_mode: str | None = None, **task_kwargs: Any) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode={render_mode!r} is not supported; use one of "
-                             f"{self.metadata['render_modes']} or None")
-        self.render_mode = render_mode
-        self._task = self._task_cls(**task_kwargs)
-        self.scenario = self._task.scenario
-        self.action_space = self._task.action_space
-        self.observation_space = self._task.observation_space
-        self._batch = LanderBatch(self._task, 1)
-        self._act_shape = self.action_space.shape
-        self._done = True
-        self._history: list = []
-        self._last_info: dict = {}
-        self._renderer = None
-
-    # -- public state -----------------------------------------------------------------------------
-    # ---- public description of the task (what policies and wrappers may rely on) -----------
     @classmethod
     def task_defaults(cls) -> dict:
         """Default values of the env's keyword arguments (scenario, dt_s, ...)."""
@@ -156,6 +138,31 @@ class LanderEnv(gym.Env):
         if fn is None:
             raise TypeError(f"{type(self).__name__} provides no physical constants")
         return fn()
+
+
+class LanderEnv(_TaskDescription, gym.Env):
+    """Base of the single-lander envs (see the subclasses for the manual)."""
+
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 10}
+    _task_cls: type = None  # set by subclasses
+
+    def __init__(self, render_mode: str | None = None, **task_kwargs: Any) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode={render_mode!r} is not supported; use one of "
+                             f"{self.metadata['render_modes']} or None")
+        self.render_mode = render_mode
+        self._task = self._task_cls(**task_kwargs)
+        self.scenario = self._task.scenario
+        self.action_space = self._task.action_space
+        self.observation_space = self._task.observation_space
+        self._batch = LanderBatch(self._task, 1)
+        self._act_shape = self.action_space.shape
+        self._done = True
+        self._history: list = []
+        self._last_info: dict = {}
+        self._renderer = None
+
+    # -- public state -----------------------------------------------------------------------------
 
     @property
     def state_nd(self) -> np.ndarray:
@@ -279,7 +286,7 @@ class LanderEnv(gym.Env):
         return d
 
 
-class LanderVectorEnv(VectorEnv):
+class LanderVectorEnv(_TaskDescription, VectorEnv):
     """Base of the native vector envs: all N landers in one compiled integrator call per step.
 
     The powered flight of every active lander is one call of the compiled kernel
@@ -331,55 +338,6 @@ class LanderVectorEnv(VectorEnv):
         if not self._started:
             raise RuntimeError("step() called before reset(); call reset() first")
 
-    # ---- public description of the task (what policies and wrappers may rely on) -----------
-    @classmethod
-    def task_defaults(cls) -> dict:
-        """Default values of the env's keyword arguments (scenario, dt_s, ...)."""
-        import inspect
-
-        return {k: v.default for k, v in inspect.signature(cls._task_cls).parameters.items()
-                if v.default is not inspect.Parameter.empty}
-
-    @property
-    def dt_s(self) -> float:
-        """Decision interval: each action is held for this long (s)."""
-        return self._task.dt_s
-
-    @property
-    def time_limit_s(self) -> float:
-        """Episode time limit (s) (truncation)."""
-        return self._task.time_limit_s
-
-    @property
-    def has_target(self) -> bool:
-        """True for a pinpoint task (miss distance reported)."""
-        return bool(self._task.has_target)
-
-    def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
-        """SI quantities encoded in observations (the inverse of the observation map).
-
-        Raises
-        ------
-        TypeError
-            If this env's observation has no SI decoding.
-        """
-        fn = getattr(self._task, "observation_quantities", None)
-        if fn is None:
-            raise TypeError(f"{type(self).__name__} observations have no SI decoding")
-        return fn(obs)
-
-    def physical_constants(self) -> dict[str, float]:
-        """SI constants of the lander and body (see the task's ``physical_constants``).
-
-        Raises
-        ------
-        TypeError
-            If this env does not provide them.
-        """
-        fn = getattr(self._task, "physical_constants", None)
-        if fn is None:
-            raise TypeError(f"{type(self).__name__} provides no physical constants")
-        return fn()
 
     @property
     def state_nd(self) -> np.ndarray:
