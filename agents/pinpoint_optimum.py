@@ -316,27 +316,20 @@ def pinpoint_optima(scenario, states_nd, *, workers: int = 1,
                 if bar is not None:
                     bar.update(1)
         else:
-            from optimizers.common.executor import LocalExecutor, Task, TaskKey, run_tasks
+            from optimizers.common.executor import run_chunks
 
             n_split = max(executor.n_workers if executor is not None else n_work, 1) * 4
             chunks = [c for c in np.array_split(todo, min(n_split, len(todo))) if len(c)]
-            tasks = [Task(TaskKey(f"pinpoint-{scenario.name}", 0, k), _chain,
-                          (scenario, states[c], [paths[i] for i in c]))
-                     for k, c in enumerate(chunks)]
 
-            def _collect(task, opts):
-                c = chunks[task.key.index]
+            def _collect(c, opts):
                 for i, opt in zip(c, opts, strict=True):
                     results[i] = opt
                 if bar is not None:
                     bar.update(len(c))
 
-            ex = executor if executor is not None else LocalExecutor(n_work)
-            try:
-                run_tasks(tasks, ex, on_result=_collect)
-            finally:
-                if executor is None:
-                    ex.close()
+            run_chunks(f"pinpoint-{scenario.name}", chunks, _chain,
+                       lambda c: (scenario, states[c], [paths[i] for i in c]),
+                       executor=executor, n_workers=n_work, on_chunk=_collect)
     finally:
         if bar is not None:
             bar.close()

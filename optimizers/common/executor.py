@@ -53,6 +53,7 @@ from typing import Any
 from .checkpoint import atomic_write_bytes
 
 __all__ = ["TaskKey", "Task", "Executor", "LocalExecutor", "RayExecutor", "ResultStore",
+           "run_chunks",
            "get_executor", "run_tasks", "check_importable", "RAY_ADDRESS_ENV"]
 
 RAY_ADDRESS_ENV = "RAY_ADDRESS"
@@ -567,3 +568,37 @@ def run_tasks(tasks: Iterable[Task], executor: Executor | None = None,
             executor.close()
     wall = time.perf_counter() - t0
     return results, RunReport(len(tasks), n_skipped, n_done, wall, executor.describe())
+
+
+def run_chunks(name: str, chunks: list, fn: Callable, args_of: Callable, *,
+               executor: Executor | None = None, n_workers: int = 1,
+               on_chunk: Callable | None = None) -> None:
+    """Run ``fn(*args_of(chunk))`` for every chunk as keyed tasks ``(name, 0, k)``.
+
+    The batch solvers (per-case optima along a warm-started chain) split their cases into chunks
+    and hand them here; each chunk's result reaches ``on_chunk(chunk, result)`` as it arrives.
+
+    Parameters
+    ----------
+    name : str
+        Problem part of the task keys.
+    chunks : list of index arrays
+    fn : module-level callable
+    args_of : callable
+        ``args_of(chunk) -> tuple`` of ``fn``'s positional arguments.
+    executor : Executor, optional
+        Default: a ``LocalExecutor(n_workers)`` made here and closed afterwards.
+    """
+    tasks = [Task(TaskKey(name, 0, k), fn, tuple(args_of(c))) for k, c in enumerate(chunks)]
+
+    def _collect(task, result):
+        if on_chunk is not None:
+            on_chunk(chunks[task.key.index], result)
+
+    ex = executor if executor is not None else LocalExecutor(n_workers)
+    try:
+        run_tasks(tasks, ex, on_result=_collect)
+    finally:
+        if executor is None:
+            ex.close()
+

@@ -144,25 +144,19 @@ def solve_many(
                 if bar is not None:
                     bar.update(1)
         else:
-            from ..common.executor import LocalExecutor, Task, TaskKey, run_tasks
+            from ..common.executor import run_chunks
 
             chunks = [order[i:i + int(chunk_size)] for i in range(0, n, int(chunk_size))]
-            tasks = [Task(TaskKey(f"pontryagin-{scenario.name}", 0, k), _solve_chain,
-                          (scenario, states[c], start, kwargs)) for k, c in enumerate(chunks)]
 
-            def _collect(task, sols):
-                c = chunks[task.key.index]
+            def _collect(c, sols):
                 for idx, sol in zip(c, sols, strict=True):
                     results[idx] = sol
                 if bar is not None:
                     bar.update(len(c))
 
-            ex = executor if executor is not None else LocalExecutor(n_workers)
-            try:
-                run_tasks(tasks, ex, on_result=_collect)
-            finally:
-                if executor is None:
-                    ex.close()
+            run_chunks(f"pontryagin-{scenario.name}", chunks, _solve_chain,
+                       lambda c: (scenario, states[c], start, kwargs), executor=executor,
+                       n_workers=n_workers, on_chunk=_collect)
     finally:
         if bar is not None:
             bar.close()
