@@ -23,13 +23,13 @@ from __future__ import annotations
 import os
 import pickle
 import re
-import tempfile
 import zipfile
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from optimizers.common.checkpoint import atomic_write_bytes
 from optimizers.common.processes import exit_with_parent
 
 __all__ = ["CKPT_RE", "next_run_dir", "claim_run_dir", "run_dir_of", "read_run", "checkpoints",
@@ -56,19 +56,7 @@ def algo_class(algo: str):
 def write_text_atomic(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` atomically (temporary file in the same folder, then
     ``os.replace``)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return atomic_write_bytes(path, text.encode())
 
 
 def _fsync(path: Path) -> None:

@@ -338,10 +338,10 @@ def main(argv: list[str] | None = None) -> int:
                      "penalty_reading": args.penalty_reading, "seed": args.seed},
     }
     if args.json:
-        tmp = args.json + ".tmp"
-        with open(tmp, "w") as fh:
-            json.dump({"published": PUBLISHED, "measured": measured}, fh, indent=1)
-        os.replace(tmp, args.json)
+        from ..common.checkpoint import atomic_write_bytes
+
+        atomic_write_bytes(args.json, json.dumps({"published": PUBLISHED, "measured": measured},
+                                                 indent=1).encode())
         print(f"  JSON: {args.json}")
     if not args.no_plots:
         _plots(args.out, problem, sol, par, results)

@@ -388,14 +388,12 @@ def main(argv: list[str] | None = None) -> int:
         measured["plots"] = _plots(args.out, rows, problems)
         print(f"plots: {', '.join(measured['plots'])}")
     if args.json:
-        d = os.path.dirname(os.path.abspath(args.json))
-        os.makedirs(d, exist_ok=True)
-        tmp = args.json + ".tmp"
-        with open(tmp, "w") as fh:
-            json.dump({"published": PUBLISHED, "measured": measured}, fh, indent=2,
-                      default=lambda o: None if isinstance(o, float) and math.isnan(o) else
-                      (o.tolist() if hasattr(o, "tolist") else str(o)))
-        os.replace(tmp, args.json)
+        from ..common.checkpoint import atomic_write_bytes
+
+        atomic_write_bytes(args.json, json.dumps(
+            {"published": PUBLISHED, "measured": measured}, indent=2,
+            default=lambda o: None if isinstance(o, float) and math.isnan(o) else
+            (o.tolist() if hasattr(o, "tolist") else str(o))).encode())
         print(f"JSON: {args.json}")
     print(f"wall time {time.perf_counter() - t_start:.1f} s")
     return 0

@@ -29,13 +29,13 @@ import argparse
 import json
 import math
 import os
-import tempfile
 import time
 
 import numpy as np
 
 from lunar_env import get_scenario
 
+from ..common.checkpoint import atomic_write_bytes
 from ..evolutionary.fga import FGA
 from ..problems.thrust_design import ThrustDesignProblem, scenario_at_thrust
 
@@ -197,12 +197,7 @@ def min_terminal_error_at(thrust_n: float, tf_s: float, x_guess: np.ndarray) -> 
 
 
 def _atomic_json(path: str, obj) -> None:
-    d = os.path.dirname(os.path.abspath(path))
-    os.makedirs(d, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=d, suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        json.dump(obj, fh, indent=2, default=float)
-    os.replace(tmp, path)
+    atomic_write_bytes(path, json.dumps(obj, indent=2, default=float).encode())
 
 
 def _plots(out_dir, problem, runs, best_i, sol, curve, t_opt) -> list[str]:
