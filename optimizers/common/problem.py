@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Problem", "PygmoProblem", "Assessment", "PenaltyGroup"]
+__all__ = ["Problem", "PygmoProblem", "Assessment", "PenaltyGroup", "central_difference_jacobian"]
 
 
 @dataclass(frozen=True)
@@ -301,6 +301,24 @@ class Problem(ABC):
         import pygmo as pg
 
         return pg.problem(PygmoProblem(self))
+
+
+
+def central_difference_jacobian(problem: Problem, x: np.ndarray,
+                                rel_step: float = 1e-6) -> np.ndarray:
+    """Central finite-difference Jacobian of ``problem.fitness`` at ``x``, all 2·dim perturbed
+    points in one :meth:`Problem.batch_fitness` call (step ``rel_step · max(1, |x_i|)``).
+
+    Returns
+    -------
+    ndarray, shape (n_f, dim)
+    """
+    x = np.asarray(x, dtype=np.float64)
+    h = rel_step * np.maximum(1.0, np.abs(x))
+    E = np.diag(h)
+    F = problem.batch_fitness(np.concatenate([x + E, x - E]))
+    d = x.size
+    return ((F[:d] - F[d:]) / (2 * h[:, None])).T
 
 
 class PygmoProblem:

@@ -47,7 +47,7 @@ from lunar_env import get_scenario
 from lunar_env.integrators import PLANAR, integrate, integrate_prepared
 from lunar_env.scenarios import PlanarScenario
 
-from ..common.problem import PenaltyGroup, Problem
+from ..common.problem import PenaltyGroup, Problem, central_difference_jacobian
 from ..common.result import ControlLaw, Trajectory
 from ..parameterisations import NodePolynomial
 
@@ -259,12 +259,7 @@ class PlanarLandingProblem(Problem):
         -------
         ndarray, shape (n_f, dim)
         """
-        x = np.asarray(x, dtype=np.float64)
-        h = rel_step * np.maximum(1.0, np.abs(x))
-        E = np.diag(h)
-        F = self.batch_fitness(np.concatenate([x + E, x - E]))
-        d = x.size
-        return ((F[:d] - F[d:]) / (2 * h[:, None])).T
+        return central_difference_jacobian(self, x, rel_step)
 
     # ---- the problem's verdict and penalty --------------------------------------------------
     @property
