@@ -86,12 +86,7 @@ class AGA(EvolutionaryAlgorithm):
         return penalised_fitness(problem, F, w)
 
     def _initial_state(self, problem, lb, ub, rng, x0):
-        if x0 is None:
-            X = ops.uniform_population(lb, ub, self.n_pop, rng)
-        else:
-            if x0.shape != (self.n_pop, lb.size):
-                raise ValueError(f"x0 has shape {x0.shape}; expected ({self.n_pop}, {lb.size})")
-            X = np.clip(x0, lb, ub)
+        X = self._initial_population(lb, ub, rng, x0, self.n_pop)
         return {"X": X, "F": problem.batch_fitness(X),
                 "history": {"objective": [], "fitness": [], "mean_fitness": []}}
 

@@ -286,12 +286,7 @@ class ASAGA(EvolutionaryAlgorithm):
 
     # ---- the generation -------------------------------------------------------------------
     def _initial_state(self, problem, lb, ub, rng, x0):
-        if x0 is None:
-            X = ops.uniform_population(lb, ub, self.n_pop, rng)
-        else:
-            if x0.shape != (self.n_pop, lb.size):
-                raise ValueError(f"x0 has shape {x0.shape}; expected ({self.n_pop}, {lb.size})")
-            X = np.clip(x0, lb, ub)
+        X = self._initial_population(lb, ub, rng, x0, self.n_pop)
         hist = {k: [] for k in ("objective", "fitness", "mean_fitness", "anneal_acceptance",
                                 "clipped_pairs")}
         return {"X": X, "F": problem.batch_fitness(X), "history": hist}

@@ -29,6 +29,7 @@ import numpy as np
 from ..common.checkpoint import load_checkpoint, save_checkpoint
 from ..common.problem import Problem, PygmoProblem
 from ..common.result import OptimResult
+from .operators import uniform_population
 
 __all__ = ["EvolutionaryAlgorithm"]
 
@@ -79,6 +80,22 @@ class EvolutionaryAlgorithm(ABC):
     @abstractmethod
     def _best(self, problem: Problem, state: dict[str, Any], generation: int) -> int:
         """Index into ``state["X"]`` of the algorithm's answer."""
+
+    def _initial_population(self, lb: np.ndarray, ub: np.ndarray, rng: np.random.Generator,
+                            x0: np.ndarray | None, n: int) -> np.ndarray:
+        """``x0`` clipped into the bounds, or ``n`` uniform draws in them when ``x0`` is None.
+
+        Raises
+        ------
+        ValueError
+            ``x0`` is not of shape (n, dim).
+        """
+        if x0 is None:
+            return uniform_population(lb, ub, n, rng)
+        x0 = np.asarray(x0, dtype=np.float64)
+        if x0.shape != (n, lb.size):
+            raise ValueError(f"x0 has shape {x0.shape}; {self.name} needs ({n}, {lb.size})")
+        return np.clip(x0, lb, ub)
 
     def _converged(self, state: dict[str, Any], generation: int) -> bool:
         """The paper's early-stop rule, if any (default: run every generation)."""

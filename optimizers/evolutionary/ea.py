@@ -144,13 +144,7 @@ class EA(EvolutionaryAlgorithm):
             raise ValueError(f"EA ([004]) solves unconstrained problems; {problem.get_name()} "
                              f"has {problem.get_nec()} equality and {problem.get_nic()} "
                              "inequality constraints")
-        if x0 is None:
-            X = ops.uniform_population(lb, ub, self.n_parents, rng)
-        else:
-            if x0.shape != (self.n_parents, lb.size):
-                raise ValueError(f"x0 has shape {x0.shape}; expected ({self.n_parents}, "
-                                 f"{lb.size})")
-            X = np.clip(x0, lb, ub)
+        X = self._initial_population(lb, ub, rng, x0, self.n_parents)
         F = problem.batch_fitness(X)
         c = self._costs(F)
         hist = {"objective": [], "mean_objective": [], "niches": []}

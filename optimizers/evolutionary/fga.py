@@ -146,13 +146,7 @@ class FGA(EvolutionaryAlgorithm):
 
     # ---- the generation -------------------------------------------------------------------
     def _initial_state(self, problem, lb, ub, rng, x0):
-        if x0 is None:
-            X = ops.uniform_population(lb, ub, self.n_pop, rng)
-        else:
-            X = np.array(x0, dtype=np.float64)
-            if X.shape != (self.n_pop, lb.size):
-                raise ValueError(f"x0 has shape {X.shape}; FGA needs ({self.n_pop}, {lb.size})")
-            X = np.clip(X, lb, ub)
+        X = self._initial_population(lb, ub, rng, x0, self.n_pop)
         return {"X": X, "F": problem.batch_fitness(X),
                 "history": {"objective": [], "fitness": []}}
 

@@ -216,12 +216,7 @@ class GAIA(EvolutionaryAlgorithm):
 
     # ---- the generation -------------------------------------------------------------------
     def _initial_state(self, problem, lb, ub, rng, x0):
-        if x0 is None:
-            X = ops.uniform_population(lb, ub, self.n_pop, rng)
-        else:
-            if x0.shape != (self.n_pop, lb.size):
-                raise ValueError(f"x0 has shape {x0.shape}; expected ({self.n_pop}, {lb.size})")
-            X = np.clip(x0, lb, ub)
+        X = self._initial_population(lb, ub, rng, x0, self.n_pop)
         hist = {k: [] for k in ("objective", "fitness", "guide", "concentration", "weight")}
         return {"X": X, "F": problem.batch_fitness(X), "f0": math.nan, "f_best_prev": -math.inf,
                 "history": hist}
