@@ -33,8 +33,12 @@ __all__ = ["OptimalStartCurriculum", "optimal_start_pool"]
 
 
 def optimal_start_pool(scenario, n_trajectories: int, seed: int, n_points: int = 101,
-                       progress: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                       progress: bool = True, workers: int = 1
+                       ) -> tuple[np.ndarray, np.ndarray]:
     """States along minimum-fuel trajectories of ``n_trajectories`` dispersed cases.
+
+    ``workers`` > 1 solves the pinpoint per-case optima in that many processes (the planar
+    Pontryagin batch is fast enough serially).
 
     Returns
     -------
@@ -55,7 +59,8 @@ def optimal_start_pool(scenario, n_trajectories: int, seed: int, n_points: int =
 
         s = scenario.scaling()
         x0 = np.array([scenario.state_nd(r, scaling=s) for r in rows])
-        opts = [o for o in pinpoint_optima(scenario, x0, progress=progress) if o.success]
+        opts = [o for o in pinpoint_optima(scenario, x0, progress=progress, workers=workers)
+                if o.success]
         if not opts:
             raise RuntimeError("no optimal trajectory converged; cannot build the curriculum")
         return (np.asarray([o.states_nd[:-1] for o in opts]),
@@ -85,13 +90,20 @@ class OptimalStartCurriculum(VecEnvWrapper):
     :param min_time_fraction, max_time_fraction: start times are drawn uniformly in this
         fraction of each optimal flight time.
     :param seed: seed of the cases and of the draws.
+    :param pool_seed: seed of the pool's cases if not ``seed``. Decision: the pinpoint pool
+        costs ~1 s of GPM + shooting per case, so its entry in ``ppo.yml`` fixes the pool seed:
+        every training seed then reads the same cached optima (``agents.pinpoint_optimum``
+        disk cache) instead of solving 256 new cases (the draws of start points still follow
+        ``seed``).
+    :param pool_workers: processes solving the pool's optima (pinpoint).
     :param progress: progress bar while solving.
     """
 
     def __init__(self, venv, total_timesteps: int, start_prob: float = 0.8,
                  anneal_fraction: float = 0.7, n_trajectories: int = 256,
                  min_time_fraction: float = 0.0, max_time_fraction: float = 1.0,
-                 seed: int = 0, progress: bool = True) -> None:
+                 seed: int = 0, pool_seed: int | None = None, pool_workers: int = 1,
+                 progress: bool = True) -> None:
         super().__init__(venv)
         native = getattr(venv, "native", None)
         if native is None or not hasattr(native, "scenario"):
@@ -113,7 +125,8 @@ class OptimalStartCurriculum(VecEnvWrapper):
         self.rng = np.random.default_rng(seed + 7919)
         t0 = time.perf_counter()
         self.pool_states, self.pool_times = optimal_start_pool(
-            native.scenario, n_trajectories, seed, progress=progress)
+            native.scenario, n_trajectories, seed if pool_seed is None else int(pool_seed),
+            progress=progress, workers=int(pool_workers))
         self.pool_build_s = time.perf_counter() - t0
         self.num_timesteps = 0
         self.n_curriculum_starts = 0

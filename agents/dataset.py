@@ -80,10 +80,22 @@ FORMAT_VERSION = 1
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
 DEFAULT_OUT = "data/imitation/LunarSoftLanding-v0_n1000_seed0.npz"
 LABEL_RULE = "action_from_thrust_angle(phi*(t_k + dt_s/2)), t_k = k*dt_s < tf"
+PINPOINT_LABEL_RULE = ("action_from_angles(mean of (alpha*, beta*) over [t_k, t_k + dt_s]), "
+                       "t_k = k*dt_s < tf, states from the law replayed at dt_s/n_fine holds")
+#: the pinpoint optimum is sampled from its replay with holds of dt_s / this
+PINPOINT_FINE_HOLDS = 8
+#: IPOPT iteration cap of a restart's re-solve (measured: converging re-solves take ~10-60
+#: iterations, ~0.5-3 s; failing ones ran to the default 300, 10-15 s each, 30 % of restarts)
+RESTART_MAX_ITER = 80
+#: pinpoint certification: the fine replay lands within these gate miss / speed
+PINPOINT_TOLERANCES = {"radius_m": 50.0, "speed_m_s": 2.5}
 
 _PER_TRAJ = ("initial_state_si", "solver_success", "fuel_kg", "tf_s", "terminal_error_radius_m",
              "terminal_error_speed_m_s", "replay_fuel_kg", "replay_touchdown_speed_m_s",
              "replay_success", "replay_fuel_gap_kg", "certified", "solve_wall_s")
+#: pinpoint datasets: episode time of each trajectory's first state (0 for a dispersed start)
+#: and, for a perturbed mid-flight restart, the row of the trajectory it branched from (else -1)
+_OPTIONAL_PER_TRAJ = ("start_time_s", "parent_index")
 _PER_SAMPLE = ("observations", "actions", "traj_index", "t_s", "state_nd", "phi_rad")
 
 
@@ -121,7 +133,12 @@ class ImitationDataset:
         """Certification figures: counts, worst terminal errors, fuel gap of the replay."""
         a = self.arrays
         c = a["certified"].astype(bool)
-        return {
+        # the open-loop replay is made for the dispersed starts only (pinpoint restarts have
+        # parent_index >= 0)
+        base = a["parent_index"] < 0 if "parent_index" in a else np.ones(len(c), dtype=bool)
+        extra = ({"n_restarts": int((~base).sum()), "n_restarts_certified": int(c[~base].sum())}
+                 if (~base).any() else {})
+        return {**extra,
             "n_trajectories": self.n_trajectories,
             "n_certified": int(c.sum()),
             "n_samples": self.n_samples,
@@ -130,11 +147,11 @@ class ImitationDataset:
             "max_terminal_error_speed_m_s": float(np.max(a["terminal_error_speed_m_s"][c]))
             if c.any() else float("nan"),
             "mean_fuel_kg": float(np.mean(a["fuel_kg"][c])) if c.any() else float("nan"),
-            "replay_success_rate": float(np.mean(a["replay_success"])),
-            "replay_fuel_gap_kg_mean": float(np.mean(a["replay_fuel_gap_kg"][c]))
-            if c.any() else float("nan"),
-            "replay_touchdown_speed_m_s_max": float(np.max(a["replay_touchdown_speed_m_s"][c]))
-            if c.any() else float("nan"),
+            "replay_success_rate": float(np.mean(a["replay_success"][base])),
+            "replay_fuel_gap_kg_mean": float(np.mean(a["replay_fuel_gap_kg"][c & base]))
+            if (c & base).any() else float("nan"),
+            "replay_touchdown_speed_m_s_max": float(np.max(
+                a["replay_touchdown_speed_m_s"][c & base])) if (c & base).any() else float("nan"),
             "wall_s": self.meta.get("wall_s"),
         }
 
@@ -228,11 +245,13 @@ def trajectory_samples(sol, env, dt_s: float) -> dict[str, np.ndarray]:
     return {"observations": obs, "actions": act, "t_s": t, "state_nd": x, "phi_rad": phi}
 
 
-def replay_labels(env_id: str, env_kwargs: dict[str, Any] | None, initial_state_si: np.ndarray,
-                  action_seqs: list[np.ndarray]) -> dict[str, np.ndarray]:
+def replay_labels(env_id: str, env_kwargs: dict[str, Any] | None,
+                  initial_state_si: np.ndarray | None, action_seqs: list[np.ndarray],
+                  initial_state_nd: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Replay per-case action sequences open-loop in the native vector env.
 
-    Each case starts from its SI initial state; after its sequence ends the last action is held.
+    Each case starts from its SI initial state (or its normalised ``initial_state_nd``); after
+    its sequence ends the last action is held.
 
     Returns
     -------
@@ -251,10 +270,232 @@ def replay_labels(env_id: str, env_kwargs: dict[str, Any] | None, initial_state_
 
     lens = np.array([len(a) for a in action_seqs])
     out = fly(env_id, act, n, seed=0, env_kwargs=env_kwargs,
-              reset_options={"state_si": np.asarray(initial_state_si, dtype=np.float64)},
+              reset_options=({"state_si": np.asarray(initial_state_si, dtype=np.float64)}
+                             if initial_state_nd is None else
+                             {"state_nd": np.asarray(initial_state_nd, dtype=np.float64)}),
               max_steps=int(lens.max()) + 100_000, name="open-loop replay")
     fuel, speed, success = out.fuel_used_kg, out.touchdown_speed_m_s, out.is_success
     return {"fuel_kg": fuel, "touchdown_speed_m_s": speed, "success": success}
+
+
+def _is_pinpoint(scenario) -> bool:
+    from lunar_env.scenarios import PinpointScenario
+
+    return isinstance(scenario, PinpointScenario)
+
+
+def pinpoint_trajectory_samples(optima: list, initial_state_nd: np.ndarray, env_id: str,
+                                env_kwargs: dict[str, Any] | None, dt_s: float,
+                                n_fine: int = PINPOINT_FINE_HOLDS,
+                                start_time_s: np.ndarray | None = None
+                                ) -> list[dict[str, Any]]:
+    """(observation, action) samples of pinpoint per-case optima at the env's decision times.
+
+    Decision: the pinpoint optimum (:class:`agents.pinpoint_optimum.PinpointOptimum`) stores
+    its states only at the shooting nodes, and its law flown with the env's own holds drifts
+    (at 1 s holds the optimum reaches the gate 9-14 m/s too fast). The optimal *continuous*
+    trajectory is therefore sampled from the law replayed in the env itself with holds of
+    ``dt_s / n_fine`` (measured at 0.25 s holds: gate speed <= 2.2 m/s, fuel within 0.001 kg of
+    the optimum; finer is closer): the observations at ``t_k = k·dt_s`` come from the env's own
+    observation function on that trajectory, and the label is the law averaged over
+    [t_k, t_k + dt_s] (the best constant action for a step that holds it, the rule of
+    :meth:`PinpointOptimum.mean_angles`).
+
+    ``start_time_s`` (per case, default 0): episode clock at the initial state, for optima
+    re-solved from a mid-flight state (the observation's time feature and the samples' ``t_s``
+    are episode times; the law's own clock starts at 0 there).
+
+    Returns one dict per case: ``observations``, ``actions`` (K, 2), ``t_s``, ``state_nd``
+    (K, 7), ``phi_rad`` (K, 2) = (α, β) of the label, and the fine replay's verdict
+    ``success``, ``touchdown_speed_m_s``, ``miss_m``, ``fuel_kg`` (``None`` for a failed solve).
+    """
+    from agents.pinpoint_optimum import PinpointOpenLoopPolicy
+    from agents.rollout import fly
+    from lunar_env.envs.pinpoint_landing import action_from_angles
+
+    ok = [i for i, o in enumerate(optima) if o.success]
+    out: list[dict[str, Any] | None] = [None] * len(optima)
+    if not ok:
+        return out
+    n_fine = int(n_fine)
+    t_start = (np.zeros(len(optima)) if start_time_s is None
+               else np.asarray(start_time_s, dtype=np.float64))[ok]
+    fine = dict(env_kwargs or {}, dt_s=float(dt_s) / n_fine)
+    pol = PinpointOpenLoopPolicy([optima[i] for i in ok], t_offset_s=t_start)
+    x0 = np.asarray(initial_state_nd, dtype=np.float64)[ok]
+
+    def on_reset(venv):
+        core = venv.unwrapped
+        if np.any(t_start != 0.0):
+            core.set_states(np.arange(len(ok)), x0, t_start)
+        pol.reset(venv, np.arange(len(ok)))
+
+    rec = fly(env_id, lambda obs, venv, active: pol.act(obs, venv), len(ok), seed=0,
+              env_kwargs=fine, reset_options={"state_nd": x0}, record=range(len(ok)),
+              on_reset=on_reset, name="fine open-loop replay of the optimum")
+    env = _make_env(env_id, env_kwargs)
+    sc = env.scenario
+    for j, i in enumerate(ok):
+        opt = optima[i]
+        r = rec.records[j]
+        t_fine = r["t_s"]
+        n_k = min(int(np.ceil(opt.tf_s / dt_s - 1e-9)), (len(t_fine) - 1) // n_fine + 1)
+        idx = n_fine * np.arange(max(n_k, 1))
+        t = t_fine[idx]
+        ang = np.array([opt.mean_angles(float(tk - t_start[j]), float(dt_s)) for tk in t])
+        act = action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
+                                 sc.beta_bounds_rad).astype(np.float32)
+        # the env's own observation of the recorded states (the reset observation predates
+        # the clock set by on_reset)
+        obs = np.asarray(env.observation_from_state(r["state_nd"][idx], t), dtype=np.float32)
+        out[i] = {"observations": obs, "actions": act,
+                  "t_s": t, "state_nd": r["state_nd"][idx], "phi_rad": ang,
+                  "success": bool(rec.is_success[j]),
+                  "touchdown_speed_m_s": float(rec.touchdown_speed_m_s[j]),
+                  "miss_m": float(rec.miss_distance_m[j]), "fuel_kg": float(rec.fuel_used_kg[j])}
+    env.close()
+    return out
+
+
+def pinpoint_restarts(scenario, optima: list, samples: list, n_restarts: int,
+                      rng: np.random.Generator, dt_s: float,
+                      position_sigma_m: float = 300.0, velocity_sigma_m_s: float = 3.0):
+    """Perturbed mid-flight states and their re-solved optima (the "tube" around the optima).
+
+    Why: the optimal trajectories of the dispersion alone show a policy what to do *on* an
+    optimal path, not how to return to one; a clone trained on them drifts (issue 16,
+    measured: BC on 256 optima 0/50 landings, gate speeds ~40-300 m/s, though its labels are
+    fitted to 0.9° RMS). Each restart takes a decision time of an optimal trajectory (uniform
+    in [0, 0.9 tf)), perturbs the state there (Gaussian, per Moon-fixed axis, ``position_sigma_m``
+    and ``velocity_sigma_m_s`` scaled by sqrt(time to go / tf), so that the perturbation stays
+    correctable as the gate nears) and re-solves the optimum from it (:func:`agents.
+    pinpoint_optimum.replan`, warm-started from the case's optimum): the whole new optimal
+    trajectory becomes samples (Sánchez-Sánchez & Izzo 2018's dataset of optimal trajectories
+    from perturbed states).
+
+    Returns ``(states_nd, start_time_s, optima, parent)``, exactly ``n_restarts`` per case in
+    case order (a case without an optimum gets failed placeholders); failed re-solves are
+    returned too (``success`` False) and certified out.
+    """
+    from agents.pinpoint_optimum import PinpointOptimum, replan
+
+    s = scenario.scaling()
+    states, times, opts, parent = [], [], [], []
+    for i, (opt, smp) in enumerate(zip(optima, samples, strict=True)):
+        if smp is None or not opt.success:
+            for _ in range(int(n_restarts)):
+                states.append(np.full(7, np.nan))
+                times.append(np.nan)
+                opts.append(PinpointOptimum(False, np.nan, np.nan, message="no parent optimum"))
+                parent.append(i)
+            continue
+        n_k = len(smp["t_s"])
+        for _ in range(int(n_restarts)):
+            k = int(rng.integers(0, max(int(0.9 * n_k), 1)))
+            t_r = float(smp["t_s"][k])
+            frac = np.sqrt(max(opt.tf_s - t_r, 0.0) / opt.tf_s)
+            y = np.array(smp["state_nd"][k], dtype=np.float64, copy=True)
+            y[0:3] += rng.normal(0.0, position_sigma_m * frac, 3) / s.length_m
+            y[3:6] += rng.normal(0.0, velocity_sigma_m_s * frac, 3) / s.velocity_m_s
+            states.append(y)
+            times.append(t_r)
+            opts.append(replan(scenario, y, opt, t_r, fallback=False,
+                               max_iter=RESTART_MAX_ITER))
+            parent.append(i)
+    return (np.asarray(states).reshape(-1, 7), np.asarray(times, dtype=np.float64),
+            opts, np.asarray(parent, dtype=np.int64))
+
+
+def _pinpoint_shard_work(job: dict[str, Any]) -> dict[str, np.ndarray]:
+    """Solve (per-case optimum, disk-cached), sample and certify one pinpoint shard."""
+    from agents.pinpoint_optimum import pinpoint_optima
+    from lunar_env.states import moon3d_nd_to_si
+
+    env = _make_env(job["env_id"], job["env_kwargs"])
+    sc = env.scenario
+    n_obs = env.observation_space.shape[0]
+    env.close()
+    x0 = np.asarray(job["rows"], dtype=np.float64)
+    dt_s = float(job["dt_s"])
+    t0 = time.perf_counter()
+    opts = pinpoint_optima(sc, x0, workers=1, progress=False)
+    n = len(x0)
+    n_fine = int(job.get("n_fine", PINPOINT_FINE_HOLDS))
+    samples = pinpoint_trajectory_samples(opts, x0, job["env_id"], job["env_kwargs"], dt_s,
+                                          n_fine)
+    n_rs = int(job.get("n_restarts", 0))
+    start = np.zeros(n)
+    parent = np.full(n, -1, dtype=np.int64)
+    if n_rs:
+        rng = np.random.default_rng([int(job["seed"]), int(job["k"])])
+        r_x0, r_t, r_opts, r_parent = pinpoint_restarts(sc, opts, samples, n_rs, rng, dt_s)
+        good = np.array([o.success for o in r_opts], dtype=bool)
+        r_samples: list = [None] * len(r_opts)
+        if good.any():
+            gi = np.flatnonzero(good)
+            sub = pinpoint_trajectory_samples([r_opts[i] for i in gi], r_x0[gi],
+                                              job["env_id"], job["env_kwargs"], dt_s, n_fine,
+                                              start_time_s=r_t[gi])
+            for i, smp in zip(gi, sub, strict=True):
+                r_samples[i] = smp
+        x0 = np.concatenate([x0, r_x0])
+        opts = list(opts) + list(r_opts)
+        samples = list(samples) + r_samples
+        start = np.concatenate([start, r_t])
+        parent = np.concatenate([parent, job["first_index"] + r_parent])
+        n = len(opts)
+    nan = np.full(n, np.nan)
+    wall = np.array([o.solve_s for o in opts], dtype=np.float64)
+    ok = np.array([o.success for o in opts], dtype=bool)
+    fuel = np.array([o.fuel_kg if o.success else np.nan for o in opts])
+    tf = np.array([o.tf_s if o.success else np.nan for o in opts])
+    fine_ok = np.array([s is not None and s["success"] for s in samples], dtype=bool)
+    err_v = np.array([s["touchdown_speed_m_s"] if s is not None else np.nan for s in samples])
+    err_r = np.array([s["miss_m"] if s is not None else np.nan for s in samples])
+    idx_ok = np.flatnonzero(ok & (parent < 0))  # the dispersed starts only
+    rep_fuel, rep_speed, rep_ok = nan.copy(), nan.copy(), np.zeros(n, dtype=bool)
+    if len(idx_ok):
+        # information only for the pinpoint env (see generate): the labels held open loop
+        rep = replay_labels(job["env_id"], job["env_kwargs"], None,
+                            [samples[i]["actions"] for i in idx_ok],
+                            initial_state_nd=x0[idx_ok])
+        rep_fuel[idx_ok] = rep["fuel_kg"]
+        rep_speed[idx_ok] = rep["touchdown_speed_m_s"]
+        rep_ok[idx_ok] = rep["success"]
+    cert = ok & fine_ok & (err_v <= job["tol_speed_m_s"]) & (err_r <= job["tol_radius_m"])
+    out: dict[str, Any] = {
+        "initial_state_si": moon3d_nd_to_si(x0, sc.scaling()), "solver_success": ok,
+        "start_time_s": start, "parent_index": parent,
+        "fuel_kg": fuel, "tf_s": tf, "terminal_error_radius_m": err_r,
+        "terminal_error_speed_m_s": err_v, "replay_fuel_kg": rep_fuel,
+        "replay_touchdown_speed_m_s": rep_speed, "replay_success": rep_ok,
+        "replay_fuel_gap_kg": rep_fuel - fuel, "certified": cert, "solve_wall_s": wall,
+    }
+    # per-trajectory rows of this shard: its cases, then n_restarts per case; shard k starts
+    # at row first_index * (1 + n_restarts) of the merged arrays (every shard but the last is
+    # full), so traj_index is the row of the merged per-trajectory arrays
+    _collect_samples(out, samples, cert, job["first_index"] * (1 + n_rs), n_obs, n_act=2, nx=7,
+                     n_angle=2)
+    out["wall_s"] = np.array(time.perf_counter() - t0)
+    return out
+
+
+def _collect_samples(out: dict[str, Any], samples: list, cert: np.ndarray, first: int,
+                     n_obs: int, n_act: int, nx: int, n_angle: int) -> None:
+    """Concatenate the certified trajectories' samples into ``out`` (empty arrays if none)."""
+    keep = [i for i in range(len(samples)) if cert[i]]
+    shape = {"observations": (0, n_obs), "actions": (0, n_act), "state_nd": (0, nx),
+             "phi_rad": (0, n_angle) if n_angle > 1 else (0,)}
+    for key in ("observations", "actions", "t_s", "state_nd", "phi_rad"):
+        if keep:
+            out[key] = np.concatenate([samples[i][key] for i in keep])
+        else:
+            out[key] = np.zeros(shape.get(key, (0,)),
+                                dtype=np.float32 if key in ("observations", "actions")
+                                else np.float64)
+    out["traj_index"] = (np.concatenate([np.full(len(samples[i]["t_s"]), first + i)
+                                         for i in keep]).astype(np.int64)
+                         if keep else np.zeros(0, dtype=np.int64))
 
 
 def _shard_work(job: dict[str, Any]) -> dict[str, np.ndarray]:
@@ -263,6 +504,8 @@ def _shard_work(job: dict[str, Any]) -> dict[str, np.ndarray]:
 
     from optimizers.indirect.batch import solve_many
 
+    if job.get("pinpoint"):
+        return _pinpoint_shard_work(job)
     env = _make_env(job["env_id"], job["env_kwargs"])
     sc = env.scenario
     rows = np.asarray(job["rows"], dtype=np.float64)
@@ -300,20 +543,8 @@ def _shard_work(job: dict[str, Any]) -> dict[str, np.ndarray]:
         "replay_success": rep_ok, "replay_fuel_gap_kg": rep_fuel - fuel, "certified": cert,
         "solve_wall_s": wall,
     }
-    keep = [i for i in range(n) if cert[i]]
-    first = job["first_index"]
-    for key in ("observations", "actions", "t_s", "state_nd", "phi_rad"):
-        if keep:
-            out[key] = np.concatenate([samples[i][key] for i in keep])
-        else:
-            n_obs = env.observation_space.shape[0]
-            shape = {"observations": (0, n_obs), "actions": (0, 1), "state_nd": (0, 5)}
-            out[key] = np.zeros(shape.get(key, (0,)),
-                                dtype=np.float32 if key in ("observations", "actions")
-                                else np.float64)
-    out["traj_index"] = (np.concatenate([np.full(len(samples[i]["t_s"]), first + i)
-                                         for i in keep]).astype(np.int64)
-                         if keep else np.zeros(0, dtype=np.int64))
+    _collect_samples(out, samples, cert, job["first_index"], env.observation_space.shape[0],
+                     n_act=1, nx=5, n_angle=1)
     out["wall_s"] = np.array(time.perf_counter() - t0)
     return out
 
@@ -356,9 +587,10 @@ def _shard_done(path: Path) -> bool:
 def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
              env_kwargs: dict[str, Any] | None = None, n: int = 1000, seed: int = 0,
              n_workers: int = 2, shard_size: int = 50, n_steps: int = 400,
-             check: str = "doubling", tol_radius_m: float = 1e-3, tol_speed_m_s: float = 1e-3,
+             check: str = "doubling", tol_radius_m: float | None = None,
+             tol_speed_m_s: float | None = None,
              progress: bool = True, max_shards: int | None = None,
-             executor=None) -> ImitationDataset | None:
+             executor=None, n_restarts: int = 0) -> ImitationDataset | None:
     """Generate (or resume) a dataset; returns it once every shard is done.
 
     Parameters
@@ -377,10 +609,16 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         Trajectories per shard (the unit of resumption).
     n_steps, check :
         Passed to :func:`optimizers.pontryagin.solve_many`.
-    tol_radius_m, tol_speed_m_s : float
-        Certification tolerances on the solver's terminal errors.
+    tol_radius_m, tol_speed_m_s : float, optional
+        Certification tolerances. Soft landing: on the solver's terminal errors (default
+        1e-3 m, 1e-3 m/s). Pinpoint: on the gate miss and gate speed of the optimum replayed at
+        fine holds (:func:`pinpoint_trajectory_samples`; default :data:`PINPOINT_TOLERANCES`),
+        on top of the env's own success verdict.
     max_shards : int, optional
         Stop after this many new shards (simulates an interruption; returns None).
+    n_restarts : int
+        Pinpoint only: perturbed mid-flight restarts per trajectory, each re-solved and
+        sampled like a trajectory of its own (:func:`pinpoint_restarts`).
     executor : optimizers.common.executor.Executor, optional
         Runs the shards (e.g. a Ray cluster: ``--address``); overrides ``n_workers``. The
         caller keeps ownership. Each shard is a task keyed (scenario, seed, shard index),
@@ -400,19 +638,47 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     env = _make_env(env_id, env_kwargs)
     sc = env.scenario
     dt_s = float(env.dt_s)
-    obs_names = ["altitude/h0", "vr/(0.1 v0)", "v_t/v0", "propellant/nominal", "t/time_limit"]
+    pinpoint = _is_pinpoint(sc)
+    obs_names = (["altitude/h0", "d_radial/d0", "d_along/d0", "d_cross/d0", "u/(0.1 v0)",
+                  "v/v0", "w/(0.1 v0)", "propellant/nominal", "t/time_limit"] if pinpoint else
+                 ["altitude/h0", "vr/(0.1 v0)", "v_t/v0", "propellant/nominal", "t/time_limit"])
     env.close()
-    rows = sc.sample_initial(np.random.default_rng(int(seed)), int(n))
+    if pinpoint:
+        s_nd = sc.scaling()
+        rows = np.array([sc.state_nd(r, scaling=s_nd)
+                         for r in sc.sample_initial(np.random.default_rng(int(seed)), int(n))])
+        tol_radius_m = PINPOINT_TOLERANCES["radius_m"] if tol_radius_m is None else tol_radius_m
+        tol_speed_m_s = (PINPOINT_TOLERANCES["speed_m_s"] if tol_speed_m_s is None
+                         else tol_speed_m_s)
+        solver_meta = {"name": "agents.pinpoint_optimum.pinpoint_optima (serial GPM + direct "
+                               "shooting, gate floor and clearance, disk cache)",
+                       "fine_holds": PINPOINT_FINE_HOLDS, "n_restarts": int(n_restarts),
+                       "restarts": "agents.dataset.pinpoint_restarts (replan from perturbed "
+                                   "mid-flight states)"}
+        cert_meta = {"tol_radius_m": tol_radius_m, "tol_speed_m_s": tol_speed_m_s,
+                     "replay": f"law replayed at dt_s/{PINPOINT_FINE_HOLDS} holds: is_success "
+                               "and gate miss / speed within the tolerances; the labels held "
+                               "open loop at dt_s are replayed for information (replay_*)"}
+    else:
+        if int(n_restarts):
+            raise ValueError(f"n_restarts = {n_restarts}: restarts are defined for the "
+                             "pinpoint env only")
+        rows = sc.sample_initial(np.random.default_rng(int(seed)), int(n))
+        tol_radius_m = 1e-3 if tol_radius_m is None else tol_radius_m
+        tol_speed_m_s = 1e-3 if tol_speed_m_s is None else tol_speed_m_s
+        solver_meta = {"name": "optimizers.pontryagin.solve_many", "n_steps": int(n_steps),
+                       "check": check, "warm_start": "nearest-neighbour chain per shard"}
+        cert_meta = {"tol_radius_m": tol_radius_m, "tol_speed_m_s": tol_speed_m_s,
+                     "replay": "labels replayed open-loop in the native vector env; "
+                               "must be is_success"}
     meta = {
         "format_version": FORMAT_VERSION, "env_id": env_id, "env_kwargs": dict(env_kwargs or {}),
         "scenario": sc.name, "seed": int(seed), "n_trajectories": int(n),
-        "shard_size": int(shard_size), "dt_s": dt_s, "label_rule": LABEL_RULE,
-        "solver": {"name": "optimizers.pontryagin.solve_many", "n_steps": int(n_steps),
-                   "check": check, "warm_start": "nearest-neighbour chain per shard"},
-        "certification": {"tol_radius_m": tol_radius_m, "tol_speed_m_s": tol_speed_m_s,
-                          "replay": "labels replayed open-loop in the native vector env; "
-                                    "must be is_success"},
-        "observation_names": obs_names, "initial_states": "scenario.sample_initial(rng, n)",
+        "shard_size": int(shard_size), "dt_s": dt_s,
+        "label_rule": PINPOINT_LABEL_RULE if pinpoint else LABEL_RULE,
+        "solver": solver_meta, "certification": cert_meta,
+        "observation_names": obs_names, "initial_states": "scenario.sample_initial(rng, n)"
+        + (" -> scenario.state_nd (initial_state_si: Moon-fixed SI)" if pinpoint else ""),
     }
     shard_dir = out.with_name(out.name + ".shards")
     shard_dir.mkdir(parents=True, exist_ok=True)
@@ -438,7 +704,8 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         jobs.append({"k": k, "rows": rows[lo:hi], "first_index": lo, "env_id": env_id,
                      "env_kwargs": dict(env_kwargs or {}), "dt_s": dt_s, "n_steps": int(n_steps),
                      "check": check, "tol_radius_m": float(tol_radius_m),
-                     "tol_speed_m_s": float(tol_speed_m_s)})
+                     "tol_speed_m_s": float(tol_speed_m_s), "pinpoint": pinpoint,
+                     "n_restarts": int(n_restarts), "seed": int(seed)})
     if max_shards is not None:
         jobs = jobs[:int(max_shards)]
     bar = None
@@ -490,7 +757,9 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     if not all(_shard_path(shard_dir, k).exists() for k in range(n_shards)):
         return None
     parts = [_read_shard(_shard_path(shard_dir, k)) for k in range(n_shards)]
-    arrays = {key: np.concatenate([p[key] for p in parts]) for key in (*_PER_TRAJ, *_PER_SAMPLE)}
+    optional = [k for k in _OPTIONAL_PER_TRAJ if all(k in p for p in parts)]
+    arrays = {key: np.concatenate([p[key] for p in parts])
+              for key in (*_PER_TRAJ, *optional, *_PER_SAMPLE)}
     meta["wall_s"] = float(sum(t["wall_s"] for t in timing))
     meta["wall_s_sessions"] = timing
     meta["solver_wall_s_per_trajectory"] = float(np.mean(arrays["solve_wall_s"]))
@@ -509,7 +778,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="env constructor arguments (values parsed as YAML)")
     p.add_argument("--n", type=int, default=1000, help="number of trajectories")
     p.add_argument("--seed", type=int, default=0, help="seed of the initial-state draw")
-    p.add_argument("--out", default=DEFAULT_OUT)
+    p.add_argument("--out", default=None,
+                   help=f"output .npz (default data/imitation/<env>_n<n>_seed<seed>.npz; "
+                        f"{DEFAULT_OUT} for the defaults)")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--address", default=None,
                    help="Ray cluster for the shards ('auto', 'host:port', 'local'); default "
@@ -517,8 +788,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--shard-size", type=int, default=50)
     p.add_argument("--n-steps", type=int, default=400, help="solver RK4 grid")
     p.add_argument("--check", default="doubling", choices=("grid", "doubling", "reference"))
-    p.add_argument("--tol-radius-m", type=float, default=1e-3)
-    p.add_argument("--tol-speed-m-s", type=float, default=1e-3)
+    p.add_argument("--tol-radius-m", type=float, default=None,
+                   help="certification tolerance (default 1e-3 m soft landing, "
+                        f"{PINPOINT_TOLERANCES['radius_m']:g} m gate miss pinpoint)")
+    p.add_argument("--tol-speed-m-s", type=float, default=None,
+                   help="certification tolerance (default 1e-3 m/s soft landing, "
+                        f"{PINPOINT_TOLERANCES['speed_m_s']:g} m/s gate speed pinpoint)")
+    p.add_argument("--restarts", type=int, default=0,
+                   help="pinpoint: perturbed mid-flight restarts per trajectory, each re-solved "
+                        "(the tube of optimal trajectories around the dispersion's optima)")
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
     env_kwargs = {}
@@ -527,6 +805,8 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--env-kwargs {item!r}: expected KEY=VALUE")
         k, v = item.split("=", 1)
         env_kwargs[k] = yaml.safe_load(v)
+    if args.out is None:
+        args.out = f"data/imitation/{args.env}_n{args.n}_seed{args.seed}.npz"
     from optimizers.common.executor import RAY_ADDRESS_ENV, get_executor
 
     executor = (get_executor(args.address, args.workers)
@@ -536,7 +816,7 @@ def main(argv: list[str] | None = None) -> int:
                       seed=args.seed, n_workers=args.workers, shard_size=args.shard_size,
                       n_steps=args.n_steps, check=args.check, tol_radius_m=args.tol_radius_m,
                       tol_speed_m_s=args.tol_speed_m_s, progress=not args.no_progress,
-                      executor=executor)
+                      executor=executor, n_restarts=args.restarts)
     finally:
         if executor is not None:
             executor.close()
@@ -547,4 +827,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    # run the imported module's main: the shard tasks must be importable as
+    # agents.dataset._shard_work by spawned or Ray workers, not as __main__._shard_work
+    from agents.dataset import main as _main
+
+    raise SystemExit(_main())

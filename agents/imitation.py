@@ -75,19 +75,42 @@ def _policy_kwargs(pk: dict[str, Any]) -> dict[str, Any]:
 
 
 def build_model(env_id: str, env_kwargs: dict[str, Any] | None, policy_kwargs: dict[str, Any],
-                seed: int, device: str = "cpu"):
+                seed: int, device: str = "cpu", obs_features: list[str] | None = None):
     """A fresh SB3 PPO model (MlpPolicy) on a one-lander SB3 vec env of ``env_id``.
 
     Only its policy is trained here; the PPO wrapper makes the saved zip loadable by
-    ``PPO.load`` and fine-tunable.
+    ``PPO.load`` and fine-tunable. ``obs_features`` (:mod:`agents.features`) widen its input
+    as in RL training; the run's ``config.yml`` records them, so :class:`agents.evaluate.
+    SB3Policy` and ``train.py --init-from`` apply the same inputs.
     """
     from stable_baselines3 import PPO
 
     from agents.vec_env import make_sb3_vec_env
 
     venv = make_sb3_vec_env(env_id, 1, seed=seed, **(env_kwargs or {}))
+    if obs_features:
+        from agents.features import ObsFeatureWrapper
+
+        venv = ObsFeatureWrapper(venv, obs_features)
     return PPO("MlpPolicy", venv, policy_kwargs=_policy_kwargs(policy_kwargs), seed=seed,
                device=device, verbose=0)
+
+
+def policy_inputs(env_id: str, env_kwargs: dict[str, Any] | None,
+                  obs_features: list[str] | None):
+    """``f(obs) -> policy input``: the env observation with the ``obs_features`` appended
+    (identity without features). Datasets and DAgger labels store the env's raw
+    observations; the features are applied when fitting and acting."""
+    from agents.features import augment_observation, feature_constants, validate_features
+
+    names = validate_features(obs_features)
+    if not names:
+        return lambda obs: np.asarray(obs, dtype=np.float32)
+    from agents.dataset import _make_env
+
+    env = _make_env(env_id, env_kwargs)
+    consts = feature_constants(env)
+    return lambda obs: augment_observation(np.asarray(obs), consts, names)
 
 
 def mean_actions(policy, obs):
@@ -279,7 +302,8 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
     bc = hp["bc"]
     seed = int(run["seed"])
     th.manual_seed(seed)
-    model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed, run["device"])
+    model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed, run["device"],
+                        hp.get("obs_features"))
     policy = model.policy
     rng = np.random.default_rng(seed)
     train_mask, val_mask = _split_by_trajectory(ds, float(bc.get("val_fraction", 0.0)), rng)
@@ -316,7 +340,8 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
             os.replace(tmp, ckdir / f"bc_epoch_{epoch}.pt")
 
     logger = _logger(run_dir, not run.get("no_tensorboard"))
-    obs, act = ds.observations, ds.actions
+    obs = policy_inputs(run["env"], env_kwargs, hp.get("obs_features"))(ds.observations)
+    act = ds.actions
     t0 = time.perf_counter()
     stats = fit_policy(policy, obs[train_mask], act[train_mask], n_epochs=int(bc["n_epochs"]),
                        batch_size=int(bc["batch_size"]),
@@ -341,7 +366,7 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
 
 
 def rollout_policy(model, env_id: str, env_kwargs: dict[str, Any] | None, n_episodes: int,
-                   seed: int) -> list[dict[str, Any]]:
+                   seed: int, obs_features: list[str] | None = None) -> list[dict[str, Any]]:
     """Fly the policy's deterministic actions from ``n_episodes`` dispersed starts.
 
     Sub-env i is reset with seed ``seed + i``. Returns one dict per episode: ``obs`` (T, n_obs),
@@ -350,8 +375,10 @@ def rollout_policy(model, env_id: str, env_kwargs: dict[str, Any] | None, n_epis
     """
     from agents.rollout import fly
 
+    inputs = policy_inputs(env_id, env_kwargs, obs_features)
+
     def act(obs, venv, active):
-        return model.predict(obs, deterministic=True)[0]
+        return model.predict(inputs(obs), deterministic=True)[0]
 
     res = fly(env_id, act, n_episodes, seed=seed, env_kwargs=env_kwargs,
               record=range(n_episodes), max_steps=100_000, name="policy")
@@ -364,9 +391,98 @@ def rollout_policy(model, env_id: str, env_kwargs: dict[str, Any] | None, n_epis
     return out
 
 
+def _label_chunk_pinpoint(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
+    """Pinpoint labels: the re-planning expert (:func:`agents.pinpoint_optimum.replan`) at each
+    chosen state. Per episode the first plan is the per-case optimum of its initial state
+    (disk-cached), and every label re-solves from the visited state by direct shooting
+    warm-started from the previous label's plan shifted in time (the DAgger oracle of issue
+    16). Label = the new plan's law averaged over the env step (the dataset's rule); a failed
+    re-plan gives status "fallback" (the previous plan's law; dropped by default). Decision:
+    no full serial re-solve from the nominal guess after a failed warm shooting (measured on
+    perturbed mid-flight states: it rarely converges there and costs 10-25 s a label)."""
+    import warnings
+
+    from agents.pinpoint_optimum import pinpoint_optima, replan
+    from lunar_env import get_scenario
+    from lunar_env.envs.pinpoint_landing import action_from_angles
+
+    sc = get_scenario(job["scenario"])
+    dt_s = float(job["dt_s"])
+    res = []
+    plans: list = []  # (plan, state, episode time) of every successful re-plan
+    for ep in job["episodes"]:
+        idx = ep["label_idx"]
+        ang = np.zeros((len(idx), 2))
+        status: list[str] = []
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            plan = pinpoint_optima(sc, ep["state_nd"][:1], progress=False)[0]
+        t_plan = float(ep["t_s"][0])
+        n_fallback = 0
+        n_done = len(idx)
+        for j, k in enumerate(idx):
+            since = float(ep["t_s"][k]) - t_plan
+            st = "optimal"
+            if not plan.success:
+                st = "fallback"
+            elif since > 1e-9:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    new = replan(sc, ep["state_nd"][k], plan, since, fallback=False)
+                if new.success:
+                    plan, t_plan, since = new, float(ep["t_s"][k]), 0.0
+                    plans.append((new, ep["state_nd"][k], t_plan))
+                else:
+                    st = "fallback"
+            n_fallback = n_fallback + 1 if st == "fallback" else 0
+            if n_fallback > int(job.get("max_fallbacks", 2)):
+                n_done = j  # decision as for soft landing: no landing from here on
+                break
+            ang[j] = plan.mean_angles(since, dt_s) if plan.success else (0.0, np.pi)
+            status.append(st)
+        idx, ang = idx[:n_done], ang[:n_done]
+        res.append({"obs": ep["obs"][idx],
+                    "actions": action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
+                                                  sc.beta_bounds_rad).astype(np.float32),
+                    "phi_rad": ang, "status": np.array(status[:n_done], dtype="<U12")})
+    if job.get("plan_samples") and plans:
+        res.append(_plan_samples(job, plans))
+    return res
+
+
+def _plan_samples(job: dict[str, Any], plans: list) -> dict[str, np.ndarray]:
+    """Every step of each re-plan's optimal trajectory from the visited state, sampled and
+    certified like a dataset trajectory (:func:`agents.dataset.pinpoint_trajectory_samples`:
+    the plan flown at fine holds must land within the dataset's tolerances). Status "plan".
+
+    Why: a re-plan costs 0.3-2 s and yields the optimal trajectory from an on-policy state to
+    the gate; labelling only its first step (classic DAgger) uses one sample of it."""
+    from agents.dataset import PINPOINT_TOLERANCES, pinpoint_trajectory_samples
+
+    opts = [p[0] for p in plans]
+    x0 = np.array([p[1] for p in plans], dtype=np.float64)
+    t0 = np.array([p[2] for p in plans], dtype=np.float64)
+    smp = pinpoint_trajectory_samples(opts, x0, job["env_id"], job.get("env_kwargs"),
+                                      float(job["dt_s"]), start_time_s=t0)
+    keep = [s for s in smp if s is not None and s["success"]
+            and s["touchdown_speed_m_s"] <= PINPOINT_TOLERANCES["speed_m_s"]
+            and s["miss_m"] <= PINPOINT_TOLERANCES["radius_m"]]
+    if not keep:
+        return {"obs": np.zeros((0, 9), np.float32), "actions": np.zeros((0, 2), np.float32),
+                "phi_rad": np.zeros((0, 2)), "status": np.zeros(0, dtype="<U12")}
+    n = sum(len(s["t_s"]) for s in keep)
+    return {"obs": np.concatenate([s["observations"] for s in keep]),
+            "actions": np.concatenate([s["actions"] for s in keep]),
+            "phi_rad": np.concatenate([s["phi_rad"] for s in keep]),
+            "status": np.full(n, "plan", dtype="<U12")}
+
+
 def _label_chunk(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
     """Label the chosen steps of some episodes with the closed-loop expert (worker process)."""
     import warnings
+
+    if job.get("pinpoint"):
+        return _label_chunk_pinpoint(job)
 
     from agents.evaluate import planar_state_si
     from agents.experts import PontryaginExpert
@@ -414,7 +530,10 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
                    label_every: int, dense_tail_s: float, n_workers: int = 1,
                    progress: bool = True, min_speed_m_s: float = 3.0,
                    velocity_ref_m_s: float | None = None,
-                   cache_dir: str | Path | None = None) -> dict[str, np.ndarray]:
+                   cache_dir: str | Path | None = None,
+                   tail_label_every: int = 1, plan_samples: bool = False,
+                   env_id: str | None = None,
+                   env_kwargs: dict[str, Any] | None = None) -> dict[str, np.ndarray]:
     """Expert labels for the visited states of policy roll-outs.
 
     Every ``label_every``-th step of each episode and every step in its last ``dense_tail_s``
@@ -429,28 +548,45 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
     ``cache_dir``: each task's labels are written there (``part_<k>.npz``) as it finishes, and
     tasks already there are not labelled again (resume within an iteration).
 
+    Pinpoint scenarios are labelled by the re-planning expert (:func:`_label_chunk_pinpoint`);
+    ``tail_label_every`` thins the dense tail (a pinpoint re-plan near the gate costs ~2 s);
+    ``plan_samples`` (pinpoint, needs ``env_id``) adds every step of each re-plan's certified
+    optimal trajectory (:func:`_plan_samples`).
+
     Returns
     -------
     dict with ``obs`` (L, n_obs) float32, ``actions`` (L, 1) float32, ``phi_rad`` (L,),
     ``status`` (L,) str (the expert's per-label status).
     """
+    from agents.dataset import _is_pinpoint
+    from lunar_env import get_scenario
+
+    pinpoint = _is_pinpoint(get_scenario(scenario_name))
     jobs_eps = []
     for ep in episodes:
         t = ep["t_s"]
         if len(t) == 0:
             continue
         k = np.arange(len(t))
-        sel = (k % max(int(label_every), 1) == 0) | (t >= t[-1] - float(dense_tail_s))
+        tail = t >= t[-1] - float(dense_tail_s)
+        k_tail = np.cumsum(tail) - 1
+        sel = (k % max(int(label_every), 1) == 0) | (
+            tail & (k_tail % max(int(tail_label_every), 1) == 0))
         if velocity_ref_m_s is not None:
             x = ep["state_nd"]
-            speed = np.hypot(x[:, 1], x[:, 0] * x[:, 3]) * float(velocity_ref_m_s)
+            if pinpoint:  # Moon-fixed velocity = velocity relative to the target
+                speed = np.linalg.norm(x[:, 3:6], axis=1) * float(velocity_ref_m_s)
+            else:
+                speed = np.hypot(x[:, 1], x[:, 0] * x[:, 3]) * float(velocity_ref_m_s)
             sel &= speed >= float(min_speed_m_s)
         jobs_eps.append({"obs": ep["obs"], "state_nd": ep["state_nd"], "t_s": t,
                          "label_idx": np.flatnonzero(sel)})
     n_workers = max(1, min(int(n_workers), len(jobs_eps)))
     # one task per few episodes: the pool balances the load and the bar moves as tasks finish
     per_task = max(1, min(4, len(jobs_eps) // (4 * n_workers) or 1))
-    jobs = [{"scenario": scenario_name, "dt_s": dt_s, "episodes": jobs_eps[i:i + per_task]}
+    jobs = [{"scenario": scenario_name, "dt_s": dt_s, "episodes": jobs_eps[i:i + per_task],
+             "pinpoint": pinpoint, "plan_samples": bool(plan_samples) and pinpoint,
+             "env_id": env_id, "env_kwargs": dict(env_kwargs or {})}
             for i in range(0, len(jobs_eps), per_task)]
     n_labels = sum(len(e["label_idx"]) for e in jobs_eps)
     bar = None
@@ -508,8 +644,12 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
             bar.close()
     parts = [r for rs in results if rs for r in rs]
     if not parts:
-        return {"obs": np.zeros((0, 5), np.float32), "actions": np.zeros((0, 1), np.float32),
-                "phi_rad": np.zeros(0), "status": np.zeros(0, dtype="<U12")}
+        n_obs = episodes[0]["obs"].shape[1] if episodes else (9 if pinpoint else 5)
+        n_act = 2 if pinpoint else 1
+        return {"obs": np.zeros((0, n_obs), np.float32),
+                "actions": np.zeros((0, n_act), np.float32),
+                "phi_rad": np.zeros((0, 2) if pinpoint else 0),
+                "status": np.zeros(0, dtype="<U12")}
     return {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "actions", "phi_rad",
                                                                 "status")}
 
@@ -549,7 +689,8 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
         start = 0
         if run.get("init"):
             init = load_policy_model(run["init"], device=run["device"])
-            model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed, run["device"])
+            model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed, run["device"],
+                                hp.get("obs_features"))
             try:
                 model.policy.load_state_dict(init.policy.state_dict())
             except RuntimeError as exc:
@@ -560,6 +701,8 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
             model = train_bc(hp, dict(run, no_tensorboard=True), run_dir / "bc_init")
     policy = model.policy
     rng = np.random.default_rng(seed + 7919)
+    inputs = policy_inputs(run["env"], env_kwargs, hp.get("obs_features"))
+    ds_inputs = inputs(ds.observations)
     logger = _logger(run_dir, not run.get("no_tensorboard"))
     dt_s = float(ds.meta["dt_s"])
     sc_name = ds.meta["scenario"]
@@ -577,7 +720,8 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
         else:
             ep_seed = seed + int(dg.get("seed_offset", 100000)) + it * int(dg["n_episodes"])
             t0 = time.perf_counter()
-            eps = rollout_policy(model, run["env"], env_kwargs, int(dg["n_episodes"]), ep_seed)
+            eps = rollout_policy(model, run["env"], env_kwargs, int(dg["n_episodes"]), ep_seed,
+                                 hp.get("obs_features"))
             roll = {"rollout_success_rate": float(np.mean([e["success"] for e in eps])),
                     "rollout_fuel_mean_kg": float(np.mean([e["fuel_kg"] for e in eps])),
                     "rollout_wall_s": time.perf_counter() - t0}
@@ -589,7 +733,10 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
                                  progress=not run.get("no_progress"),
                                  min_speed_m_s=float(dg.get("min_label_speed_m_s", 3.0)),
                                  velocity_ref_m_s=get_scenario(sc_name).scaling().velocity_m_s,
-                                 cache_dir=lbdir / f"iter_{it:03d}_parts")
+                                 cache_dir=lbdir / f"iter_{it:03d}_parts",
+                                 tail_label_every=int(dg.get("tail_label_every", 1)),
+                                 plan_samples=bool(dg.get("plan_samples", False)),
+                                 env_id=run["env"], env_kwargs=env_kwargs)
             roll["label_wall_s"] = time.perf_counter() - t0
             tmp = lb_file.with_suffix(".tmp.npz")
             np.savez_compressed(tmp, **lab, **{k: np.array(v) for k, v in roll.items()})
@@ -609,15 +756,15 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
                     keep = z["status"] != "fallback"
                 agg_obs.append(z["obs"][keep])
                 agg_act.append(z["actions"][keep])
-        eo, ea = np.concatenate(agg_obs), np.concatenate(agg_act)
-        stats = fit_policy(policy, ds.observations, ds.actions, n_epochs=int(dg["n_epochs"]),
+        eo, ea = inputs(np.concatenate(agg_obs)), np.concatenate(agg_act)
+        stats = fit_policy(policy, ds_inputs, ds.actions, n_epochs=int(dg["n_epochs"]),
                            batch_size=int(dg["batch_size"]),
                            learning_rate=float(dg["learning_rate"]),
                            learning_rate_final=float(dg.get("learning_rate_final",
                                                             dg["learning_rate"])),
                            rng=rng, extra_obs=eo, extra_act=ea,
                            extra_fraction=float(dg["dagger_fraction"]),
-                           val_obs=agg_obs[-1], val_act=agg_act[-1],
+                           val_obs=inputs(agg_obs[-1]), val_act=agg_act[-1],
                            logger=logger, progress=not run.get("no_progress"),
                            log_prefix=f"dagger_iter{it}",
                            step_offset=it * int(dg["n_epochs"]))

@@ -357,8 +357,11 @@ class PinpointOpenLoopPolicy:
 
     name = "optimum, open loop"
 
-    def __init__(self, optima: list[PinpointOptimum]) -> None:
+    def __init__(self, optima: list[PinpointOptimum], t_offset_s=None) -> None:
         self.optima = list(optima)
+        #: per-case episode time at which each law starts (mid-flight plans; default 0)
+        self.t_offset_s = (np.zeros(len(self.optima)) if t_offset_s is None
+                           else np.asarray(t_offset_s, dtype=np.float64).reshape(-1))
         self._ids = np.zeros(0, dtype=int)
 
     def reset(self, venv, case_ids: np.ndarray) -> None:
@@ -375,7 +378,7 @@ class PinpointOpenLoopPolicy:
         for k, cid in enumerate(self._ids):
             opt = self.optima[cid]
             if opt.success:
-                ang[k] = opt.mean_angles(float(t[k]), dt)
+                ang[k] = opt.mean_angles(float(t[k]) - self.t_offset_s[cid], dt)
         return action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
                                   sc.beta_bounds_rad).astype(np.float32)
 
@@ -399,13 +402,18 @@ def replan_ocp(scenario):
 
 
 def replan(scenario, state_nd: np.ndarray, plan: PinpointOptimum | None,
-           elapsed_s: float) -> PinpointOptimum:
+           elapsed_s: float, fallback: bool = True, max_iter: int | None = None
+           ) -> PinpointOptimum:
     """Re-solve from the current state (normalised, (7,)), warm-started from ``plan`` advanced
     by ``elapsed_s`` (its node controls shifted, the nodes already flown dropped); the full
-    serial strategy from the nominal guess if the warm shooting fails."""
+    serial strategy from the nominal guess if the warm shooting fails and ``fallback``
+    (measured on perturbed mid-flight states: that fallback rarely converges there and costs
+    10-25 s, so dataset restarts skip it). ``max_iter`` caps IPOPT's iterations (default the
+    solver's 300; a converging warm re-plan takes ~10-60, a failing one runs to the cap)."""
     from optimizers.transcription.serial import ControlGuess, get_solver
 
-    solver = get_solver(replan_ocp(scenario), **SOLVER_OPTIONS)
+    opts = dict(SOLVER_OPTIONS, **({} if max_iter is None else {"max_iter": int(max_iter)}))
+    solver = get_solver(replan_ocp(scenario), **opts)
     x0 = np.asarray(state_nd, dtype=np.float64).reshape(7)
     t_ref = solver.ocp.scaling.time_s
     t0 = time.perf_counter()
@@ -416,7 +424,7 @@ def replan(scenario, state_nd: np.ndarray, plan: PinpointOptimum | None,
         u_new = np.vstack([plan.angles_at(elapsed_s)[None], plan.controls_rad[keep]])
         guess = ControlGuess((plan.tf_s - elapsed_s) / t_ref, t_new / t_ref, u_new)
         res = solver.solve_shooting_only(guess, initial_state=x0)
-        if res.success:
+        if res.success or not fallback:
             return _from_result(res, solver, x0, time.perf_counter() - t0)
     res = solver.solve(initial_state=x0)
     return _from_result(res, solver, x0, time.perf_counter() - t0)
