@@ -129,3 +129,26 @@ def test_dataset_cli_runs_as_a_module(tmp_path):
                          capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-2000:]
     assert out.exists()
+
+
+def test_pinpoint_ppo_quick_with_curriculum_features_and_shaping(pinpoint_dataset, tmp_path,
+                                                                 monkeypatch):
+    """CI version of the default pinpoint PPO run: the shipped entry (curriculum from the
+    per-case optima, features, shaping) at its @quick size, then the evaluation against the
+    per-case optimum."""
+    import json
+
+    import agents.train as tr
+
+    root, _ = pinpoint_dataset
+    monkeypatch.setenv("LUNAR_CACHE_DIR", str(root / "cache"))
+    run_dir = tmp_path / "ppo"
+    assert tr.main(["--quick", "--env", ENV_ID, "--seed", "3", "--run-dir", str(run_dir),
+                    "--no-progress", "--no-tensorboard", "--eval-states", "2",
+                    "--eval-expert-states", "0"]) == 0
+    hp = yaml.safe_load((run_dir / "config.yml").read_text())
+    assert hp["curriculum"]["pool_seed"] == 1 and hp["obs_features"] and hp["reward_shaping"]
+    rep = json.loads((run_dir / "evaluation" / "comparison.json").read_text())
+    assert rep["optimum"]["converged"] == 2 and 270.0 < rep["optimum"]["fuel_mean_kg"] < 295.0
+    rows = {r["policy"]: r for r in rep["rows"]}
+    assert any(k.startswith("PPO") for k in rows) and "optimum, open loop" in rows
