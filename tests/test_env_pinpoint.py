@@ -256,3 +256,55 @@ def test_v1_charges_the_propellant_left_on_failure_and_v0_does_not():
         if not live.any():
             break
     assert total[0] == pytest.approx(r1.sum(), rel=1e-12)
+
+
+def test_v2_gate_counts_only_near_the_target():
+    """v2: diving far from the target does not end at the 2 km gate sphere but at the surface;
+    the altitude below the gate stays observable; entering the target zone under the gate ends
+    the episode; the single and the vector env agree; every other step is v1's."""
+    v2 = gym.make("LunarPinpointLanding-v2").unwrapped
+    check_env(v2, skip_render_check=True)
+    task = v2._task
+    assert task.gate_range_m == 10_000.0 and v2.observation_space.low[0] < 0.0
+    dive = np.tile(np.array([-1.0, 0.111], np.float32), (600, 1))
+    ends = {}
+    for env_id in (ENV_ID, "LunarPinpointLanding-v2"):
+        env = gym.make(env_id).unwrapped
+        env.reset(seed=3)
+        alts, obs0 = [], []
+        for a in dive:
+            obs, _, term, trunc, info = env.step(a)
+            alts.append(info["altitude_m"])
+            obs0.append(obs[0])
+            if term or trunc:
+                break
+        ends[env_id] = (info, np.array(alts), np.array(obs0))
+    i1, a1, _ = ends[ENV_ID]
+    i2, a2, o2 = ends["LunarPinpointLanding-v2"]
+    gate_alt = v2.scenario.target.altitude_m
+    # v1 ends at the gate sphere (2 km), hundreds of km short; v2 flies on below 2 km to the
+    # surface (altitude 0), and its observation shows the negative altitude above the gate
+    assert abs(a1[-1] - gate_alt) < 1.0 and i1["miss_distance_m"] > 1e5
+    assert abs(a2[-1]) < 1.0 and a2[-1] < gate_alt - 1000.0 and len(a2) > len(a1)
+    assert o2[-2] < 0.0 and not i2["is_success"]
+    # the same flight agrees until v1 stops
+    np.testing.assert_allclose(a2[:len(a1) - 1], a1[:-1], rtol=0, atol=1e-6)
+    # the zone: within 10 km of the target (great circle at the gate radius)
+    r_hat = task.target_nd / np.linalg.norm(task.target_nd)
+    below = np.concatenate([task.target_nd * (1.0 - 1e-6), np.zeros(3), [v2.state_nd[-1]]])
+    above = np.concatenate([task.target_nd * (1.0 + 1e-6), np.zeros(3), [v2.state_nd[-1]]])
+    assert task.below_gate_in_zone(below[None])[0] and not task.below_gate_in_zone(above[None])[0]
+    side = np.cross(r_hat, [0.0, 0.0, 1.0])
+    side /= np.linalg.norm(side)
+    for d_m, inside in ((9_000.0, True), (11_000.0, False)):
+        ang = d_m / (task.r_stop_nd * task.length_ref_m)
+        far = below.copy()
+        far[0:3] = np.linalg.norm(below[0:3]) * (np.cos(ang) * r_hat + np.sin(ang) * side)
+        assert task.in_gate_zone(far[None])[0] == inside
+        assert task.below_gate_in_zone(far[None])[0] == inside
+        assert task.stop_radius(far[None])[0] == (task.r_stop_nd if inside
+                                                   else task.surface_radius_nd)
+    # v0/v1: the gate sphere everywhere
+    t1 = gym.make(ENV_ID).unwrapped._task
+    assert t1.stop_radius(below[None])[0] == t1.r_stop_nd
+    assert not t1.below_gate_in_zone(below[None])[0]

@@ -2,7 +2,8 @@
 
 - ``LunarSoftLanding-v0``: :class:`~lunar_env.envs.soft_landing.LunarSoftLandingEnv`
 - ``LunarPinpointLanding-v1``: :class:`~lunar_env.envs.pinpoint_landing.LunarPinpointLandingEnv`
-  (``-v0``: the same env with the pre-issue-16 reward, ``charge_propellant_on_failure=False``)
+  (``-v0``: the same env with the pre-issue-16 reward, ``charge_propellant_on_failure=False``;
+  ``-v2``: the 2 km gate counts only within 10 km of the target, ``gate_range_m=10000``)
 
 Both have a native vector env (``gym.make_vec(id, num_envs=N,
 vectorization_mode="vector_entry_point")``).
@@ -17,6 +18,9 @@ _ENVS = {
                             {}),
     "LunarPinpointLanding-v1": ("pinpoint_landing", "LunarPinpointLandingEnv",
                                 "LunarPinpointLandingVectorEnv", {}),
+    # v2: v1 with the 2 km gate counting only within 10 km of the target (issue 16)
+    "LunarPinpointLanding-v2": ("pinpoint_landing", "LunarPinpointLandingEnv",
+                                "LunarPinpointLandingVectorEnv", {"gate_range_m": 10_000.0}),
     # v0: the reward before issue 16 (no propellant charge for a failed landing)
     "LunarPinpointLanding-v0": ("pinpoint_landing", "LunarPinpointLandingEnv",
                                 "LunarPinpointLandingVectorEnv",

@@ -211,6 +211,7 @@ class LanderEnv(_TaskDescription, gym.Env):
             a = validate_actions(action, self._act_shape).tolist()
         controls = task.control_one(a)
         # what LanderBatch._powered does, on scalars
+        b.update_stop_radius()
         t0 = b.t_nd
         b._breaks[0, 0] = t0[0]
         b._breaks[0, 1] = t0[0] + task.dt_nd

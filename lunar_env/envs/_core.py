@@ -95,10 +95,18 @@ class LanderBatch:
         self.m_start_nd[i] = self.y[i, -1] if np.ndim(i) == 0 else self.y[i][:, -1]
 
     # -- physics --------------------------------------------------------------------------------
+    def update_stop_radius(self) -> None:
+        """Per-lander terminal radius for the coming step (tasks whose gate depends on where the
+        lander is, e.g. the pinpoint v2 gate that counts only near the target)."""
+        fn = getattr(self.task, "stop_radius", None)
+        if fn is not None:
+            self._r_stop[:] = fn(self.y)
+
     def _powered(self, idx, controls):
         task = self.task
         if idx is None:
             y0, t0 = self.y, self.t_nd
+            self.update_stop_radius()
             breaks, coefs, h, rs = self._breaks, self._coefs, self._h, self._r_stop
             parallel = self._parallel
         else:
@@ -107,7 +115,8 @@ class LanderBatch:
             breaks = np.empty((k, 2))
             coefs = np.empty((k, 1, controls.shape[1], 1))
             h = np.full(k, task.h_nd)
-            rs = np.full(k, task.r_stop_nd)
+            fn = getattr(task, "stop_radius", None)
+            rs = fn(y0) if fn is not None else np.full(k, task.r_stop_nd)
             parallel = self._parallel and k >= integ._PARALLEL_MIN_BATCH
         breaks[:, 0] = t0
         breaks[:, 1] = t0 + task.dt_nd
@@ -171,6 +180,11 @@ class LanderBatch:
                     y_end[j], t_end[j], t_step_end[j], controls[j])
                 burnt[j] |= not np.isnan(tb)
         touchdown = status == integ.STATUS_RADIUS
+        below = getattr(task, "below_gate_in_zone", None)
+        if below is not None:
+            # pinpoint v2: a lander that enters the target zone under the gate (it flew below
+            # 2 km elsewhere) ends there, scored at its current speed and position
+            touchdown |= below(y_end) & ~burnt
         engine_off = (status == integ.STATUS_SPEED_MIN) | (burnt & ~touchdown)
         lost = np.zeros_like(touchdown)
         if engine_off.any():

@@ -92,8 +92,8 @@ class _PinpointTask:
                  substeps: int = 2, time_limit_s: float | None = None,
                  throttle_channel: bool = False, success_speed_m_s: float = 5.0,
                  success_miss_m: float = 500.0, max_fall_s: float | None = None,
-                 cutoff_speed_m_s: float = 20.0, charge_propellant_on_failure: bool = True
-                 ) -> None:
+                 cutoff_speed_m_s: float = 20.0, charge_propellant_on_failure: bool = True,
+                 gate_range_m: float | None = None) -> None:
         sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
         if not isinstance(sc, PinpointScenario):
             raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not a pinpoint scenario; "
@@ -123,9 +123,23 @@ class _PinpointTask:
         self.range_scale_m = max(float(np.linalg.norm(self.target_nd - r0)) * s.length_m, 1.0)
         self.speed_scale_m_s = max(math.sqrt(sc.initial.u_m_s ** 2 + sc.initial.v_m_s ** 2
                                              + sc.initial.w_m_s ** 2), 1.0)
+        #: v2: the 2 km gate counts only within this great-circle distance of the target (at
+        #: the gate radius); elsewhere the lander may fly below 2 km and ends at the surface
+        #: (None: the gate sphere ends the episode everywhere, v0/v1)
+        self.gate_range_m = None
+        if gate_range_m is not None:
+            from lunar_env.validation import require_finite_positive
+
+            self.gate_range_m = require_finite_positive("gate_range_m", gate_range_m)
+            self._gate_cos = math.cos(self.gate_range_m / (self.r_stop_nd * s.length_m))
+            self._target_unit = self.target_nd / np.linalg.norm(self.target_nd)
         n_act = 3 if self.throttle_channel else 2
         self.action_space = box([-1.0] * n_act, [1.0] * n_act)
-        self.obs_low = np.array([0.0, -3.0, -3.0, -3.0, -20.0, -2.0, -20.0, 0.0, 0.0])
+        # v2 lets the lander fly below the gate away from the target: altitude down to the
+        # surface (-2 km / h0) must stay observable
+        alt_low = 0.0 if self.gate_range_m is None else \
+            -1.05 * sc.target.altitude_m / self.altitude_scale_m
+        self.obs_low = np.array([alt_low, -3.0, -3.0, -3.0, -20.0, -2.0, -20.0, 0.0, 0.0])
         self.obs_high = np.array([20.0, 3.0, 3.0, 3.0, 20.0, 2.0, 20.0, 1.5, 2.0])
         self.observation_space = box(self.obs_low, self.obs_high)
         L, V = self.length_ref_m, self.velocity_ref_m_s
@@ -189,6 +203,27 @@ class _PinpointTask:
     def altitude_one(self, y: list) -> float:
         return (math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) - self.surface_radius_nd) \
             * self.length_ref_m
+
+    def in_gate_zone(self, y: np.ndarray) -> np.ndarray:
+        """(B,) bool: the lander is within ``gate_range_m`` of the target (great circle at the
+        gate radius); all True without a gate range (v0/v1)."""
+        if self.gate_range_m is None:
+            return np.ones(len(y), dtype=bool)
+        pos = y[:, 0:3]
+        cos = (pos @ self._target_unit) / np.sqrt(np.sum(pos * pos, axis=1))
+        return cos >= self._gate_cos
+
+    def stop_radius(self, y: np.ndarray) -> np.ndarray:
+        """Terminal radius of each lander for the coming step: the gate sphere in the target
+        zone, the Moon's reference sphere elsewhere (v2)."""
+        return np.where(self.in_gate_zone(y), self.r_stop_nd, self.surface_radius_nd)
+
+    def below_gate_in_zone(self, y: np.ndarray) -> np.ndarray:
+        """(B,) bool: inside the target zone and under the gate (v2 ends the episode there)."""
+        if self.gate_range_m is None:
+            return np.zeros(len(y), dtype=bool)
+        r = np.sqrt(np.sum(y[:, 0:3] ** 2, axis=1))
+        return self.in_gate_zone(y) & (r < self.r_stop_nd * (1.0 - 1e-12))
 
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         return _observation_kernel(np.ascontiguousarray(y, dtype=np.float64),
@@ -344,6 +379,16 @@ _DOC = """
     2. Truncation: time >= ``time_limit_s`` (default 1200 s = 1.5 × 800 s) or a free fall that
        does not reach the gate within ``max_fall_s``.
 
+    v2 (``gate_range_m=10000``): the gate counts only within 10 km (great circle at the gate
+    radius) of the target. Elsewhere the lander may fly below 2 km and the terminal surface is
+    the Moon's reference sphere (a crash, scored like a gate crossing: speed there and the miss
+    of its radial projection); a lander that enters the target zone under the gate ends there.
+    Why (issue 16): [001]'s optimum cruises the last ~250 s only 300-500 m above the 2 km
+    sphere at up to 1 km/s, so under v0/v1 an error of a few hundred metres of altitude
+    anywhere on the way ends the episode as a 1 km/s crash, while [001]'s problem (and a real
+    descent) only ends at the gate above the target. The optimum, the observations and the
+    rewards are v1's; the altitude observation may go negative (down to -2 km / h₀).
+
     [001]'s path constraint |u|, |w| <= 110 m/s is an optimiser constraint, not enforced here;
     its propellant bound (300 kg) is the vehicle's: the burn ends at the dry mass.
 
@@ -355,7 +400,9 @@ _DOC = """
 
     As ``LunarSoftLanding-v0`` (``scenario`` default "peng2012", ``dt_s``, ``substeps``,
     ``time_limit_s``, ``throttle_channel``, ``success_speed_m_s``, ``max_fall_s``,
-    ``cutoff_speed_m_s``, ``render_mode``) plus ``success_miss_m`` (500.0).
+    ``cutoff_speed_m_s``, ``render_mode``) plus ``success_miss_m`` (500.0),
+    ``charge_propellant_on_failure`` (v1/v2 True, v0 False) and ``gate_range_m`` (v2 10000.0;
+    None: the gate sphere everywhere).
 
     >>> import gymnasium as gym
     >>> import lunar_env
@@ -366,6 +413,8 @@ _DOC = """
 
     ## Version History
 
+    - v2: the gate ends an episode only within 10 km of the target (``gate_range_m``; issue 16,
+      see Episode End); otherwise v1.
     - v1: an episode that ends without success is charged the propellant left (issue 16; the
       dynamics, observations, actions and termination are v0's).
     - v0: initial version (``gym.make("LunarPinpointLanding-v0")`` still gives it:
