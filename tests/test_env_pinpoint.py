@@ -163,7 +163,8 @@ def test_pickle_render_and_bad_scenario():
 
 
 @pytest.mark.slow
-def test_optimal_pinpoint_landing_is_landable_and_ranked_best():
+@pytest.mark.parametrize("env_id", [ENV_ID, "LunarPinpointLanding-v2"])
+def test_optimal_pinpoint_landing_is_landable_and_ranked_best(env_id):
     """[001]'s optimum (GPM + direct shooting of :mod:`optimizers`) replayed open loop lands at
     the gate softly and on target with 0.25 s steps, and its return at the default 1 s steps
     beats braking, climbing, diving and random policies."""
@@ -182,7 +183,7 @@ def test_optimal_pinpoint_landing_is_landable_and_ranked_best():
     ssol = nominal.extra["shooting_solution"]
     pp = ssol.control_law()
     t_ref = ocp.scaling.time_s
-    env = gym.make(ENV_ID).unwrapped
+    env = gym.make(env_id).unwrapped
 
     def run(policy):
         env.reset(options={"nominal": True})
