@@ -33,6 +33,17 @@ Pipeline
    (``replay_fuel_gap_kg``). ``certified`` = solver success, terminal speed and radius errors
    below ``tol_speed_m_s`` / ``tol_radius_m`` and the env replay a success.
 
+Pinpoint (``--env LunarPinpointLanding-v*``): no open-loop solution can be sampled there (the
+optimum held over 1 s env steps misses the gate by ~10 m/s, and a clone of the optimal
+trajectories alone drifts off them), so the samples come from the **Pontryagin feedback
+expert's own closed-loop flights** (:func:`pinpoint_expert_flights`): at every decision the
+minimum-fuel extremal is re-solved from the visited state (~1-15 ms), the label is its law
+averaged over the step, and the env is flown with that action plus Gaussian noise (``--noise``,
+default :data:`PINPOINT_ACTION_NOISE`), so the states cover the tube a learner visits. Per
+trajectory, ``fuel_kg`` / ``tf_s`` are the extremal from the initial state (the per-case
+optimum) and ``replay_*`` the noisy flight; ``certified`` = that flight is the env's success
+within the tolerances (default: the env's, 5 m/s and 500 m) and the first solve converged.
+
 Parallel, progress, resume: the rows are split into shards of ``shard_size``; shards are tasks
 of :mod:`optimizers.common.executor` (a local process pool of ``--workers``, or a Ray cluster
 with ``--address`` / ``RAY_ADDRESS``), each written atomically to ``<out>.shards/shard_<k>.npz``.
@@ -80,15 +91,17 @@ FORMAT_VERSION = 1
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
 DEFAULT_OUT = "data/imitation/LunarSoftLanding-v0_n1000_seed0.npz"
 LABEL_RULE = "action_from_thrust_angle(phi*(t_k + dt_s/2)), t_k = k*dt_s < tf"
-PINPOINT_LABEL_RULE = ("action_from_angles(mean of (alpha*, beta*) over [t_k, t_k + dt_s]), "
-                       "t_k = k*dt_s < tf, states from the law replayed at dt_s/n_fine holds")
-#: the pinpoint optimum is sampled from its replay with holds of dt_s / this
-PINPOINT_FINE_HOLDS = 8
-#: IPOPT iteration cap of a restart's re-solve (measured: converging re-solves take ~10-60
-#: iterations, ~0.5-3 s; failing ones ran to the default 300, 10-15 s each, 30 % of restarts)
-RESTART_MAX_ITER = 80
-#: pinpoint certification: the fine replay lands within these gate miss / speed
-PINPOINT_TOLERANCES = {"radius_m": 50.0, "speed_m_s": 2.5}
+PINPOINT_LABEL_RULE = ("action_from_angles(mean of the extremal's (alpha*, beta*) over "
+                       "[t_k, t_k + dt_s]) at each state visited by the Pontryagin feedback "
+                       "expert's own flight, flown with Gaussian action noise (DART)")
+#: pinpoint certification: the expert's (noisy) flight is the env's success and lands within
+#: these gate miss / gate speed (default: the env's own success tolerances)
+PINPOINT_TOLERANCES = {"radius_m": 500.0, "speed_m_s": 5.0}
+#: pinpoint: standard deviation of the action noise of the expert's flights (action units;
+#: 0.02 = 0.9° of α or β). Measured (50 flights at 1 s decisions): the noisy expert still lands
+#: 98 % (gate speed median 1.2 m/s, miss median 20 m) and its states cover the tube a clone
+#: visits; a clone trained on noise-free flights drifts 1-10 km from them.
+PINPOINT_ACTION_NOISE = 0.02
 
 _PER_TRAJ = ("initial_state_si", "solver_success", "fuel_kg", "tf_s", "terminal_error_radius_m",
              "terminal_error_speed_m_s", "replay_fuel_kg", "replay_touchdown_speed_m_s",
@@ -284,131 +297,81 @@ def _is_pinpoint(scenario) -> bool:
     return isinstance(scenario, PinpointScenario)
 
 
-def pinpoint_trajectory_samples(optima: list, initial_state_nd: np.ndarray, env_id: str,
-                                env_kwargs: dict[str, Any] | None, dt_s: float,
-                                n_fine: int = PINPOINT_FINE_HOLDS,
-                                start_time_s: np.ndarray | None = None
-                                ) -> list[dict[str, Any]]:
-    """(observation, action) samples of pinpoint per-case optima at the env's decision times.
+def pinpoint_expert_flights(rows_nd: np.ndarray, env_id: str,
+                            env_kwargs: dict[str, Any] | None, action_noise: float,
+                            rng: np.random.Generator) -> dict[str, Any]:
+    """Fly the Pontryagin feedback expert from each normalised initial state and label every
+    visited state with its clean action (DART: Laskey et al. 2017).
 
-    Decision: the pinpoint optimum (:class:`agents.pinpoint_optimum.PinpointOptimum`) stores
-    its states only at the shooting nodes, and its law flown with the env's own holds drifts
-    (at 1 s holds the optimum reaches the gate 9-14 m/s too fast). The optimal *continuous*
-    trajectory is therefore sampled from the law replayed in the env itself with holds of
-    ``dt_s / n_fine`` (measured at 0.25 s holds: gate speed <= 2.2 m/s, fuel within 0.001 kg of
-    the optimum; finer is closer): the observations at ``t_k = k·dt_s`` come from the env's own
-    observation function on that trajectory, and the label is the law averaged over
-    [t_k, t_k + dt_s] (the best constant action for a step that holds it, the rule of
-    :meth:`PinpointOptimum.mean_angles`).
+    The expert (:class:`agents.experts.PinpointPontryaginExpert`) re-solves the minimum-fuel
+    extremal from the lander's state at every decision; the env is flown with its action plus
+    Gaussian noise of standard deviation ``action_noise`` (action units; 0.02 ≈ 0.9°), so the
+    visited states spread around the optimal trajectory the way a learner's do, while every
+    label stays the expert's optimal action there (:data:`PINPOINT_LABEL_RULE`). Labels whose
+    solve did not converge (status "stale"/"fallback") are dropped.
 
-    ``start_time_s`` (per case, default 0): episode clock at the initial state, for optima
-    re-solved from a mid-flight state (the observation's time feature and the samples' ``t_s``
-    are episode times; the law's own clock starts at 0 there).
-
-    Returns one dict per case: ``observations``, ``actions`` (K, 2), ``t_s``, ``state_nd``
-    (K, 7), ``phi_rad`` (K, 2) = (α, β) of the label, and the fine replay's verdict
-    ``success``, ``touchdown_speed_m_s``, ``miss_m``, ``fuel_kg`` (``None`` for a failed solve).
+    Returns per case: ``samples`` (list of dicts ``observations``, ``actions``, ``t_s``,
+    ``state_nd``, ``phi_rad``, ``status``), the flight's ``success``, ``touchdown_speed_m_s``,
+    ``miss_m``, ``fuel_kg``; ``optimum_fuel_kg`` / ``optimum_tf_s`` of the extremal from the
+    initial state (the per-case optimum; NaN if that first solve failed); ``wall_s``.
     """
-    from agents.pinpoint_optimum import PinpointOpenLoopPolicy
+    from agents.experts import PinpointPontryaginExpert
     from agents.rollout import fly
     from lunar_env.envs.pinpoint_landing import action_from_angles
 
-    ok = [i for i, o in enumerate(optima) if o.success]
-    out: list[dict[str, Any] | None] = [None] * len(optima)
-    if not ok:
-        return out
-    n_fine = int(n_fine)
-    t_start = (np.zeros(len(optima)) if start_time_s is None
-               else np.asarray(start_time_s, dtype=np.float64))[ok]
-    fine = dict(env_kwargs or {}, dt_s=float(dt_s) / n_fine)
-    pol = PinpointOpenLoopPolicy([optima[i] for i in ok], t_offset_s=t_start)
-    x0 = np.asarray(initial_state_nd, dtype=np.float64)[ok]
-
-    def on_reset(venv):
-        core = venv.unwrapped
-        if np.any(t_start != 0.0):
-            core.set_states(np.arange(len(ok)), x0, t_start)
-        pol.reset(venv, np.arange(len(ok)))
-
-    rec = fly(env_id, lambda obs, venv, active: pol.act(obs, venv), len(ok), seed=0,
-              env_kwargs=fine, reset_options={"state_nd": x0}, record=range(len(ok)),
-              on_reset=on_reset, name="fine open-loop replay of the optimum")
     env = _make_env(env_id, env_kwargs)
     sc = env.scenario
-    for j, i in enumerate(ok):
-        opt = optima[i]
-        r = rec.records[j]
-        t_fine = r["t_s"]
-        n_k = min(int(np.ceil(opt.tf_s / dt_s - 1e-9)), (len(t_fine) - 1) // n_fine + 1)
-        idx = n_fine * np.arange(max(n_k, 1))
-        t = t_fine[idx]
-        ang = np.array([opt.mean_angles(float(tk - t_start[j]), float(dt_s)) for tk in t])
-        act = action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
-                                 sc.beta_bounds_rad).astype(np.float32)
-        # the env's own observation of the recorded states (the reset observation predates
-        # the clock set by on_reset)
-        obs = np.asarray(env.observation_from_state(r["state_nd"][idx], t), dtype=np.float32)
-        out[i] = {"observations": obs, "actions": act,
-                  "t_s": t, "state_nd": r["state_nd"][idx], "phi_rad": ang,
-                  "success": bool(rec.is_success[j]),
-                  "touchdown_speed_m_s": float(rec.touchdown_speed_m_s[j]),
-                  "miss_m": float(rec.miss_distance_m[j]), "fuel_kg": float(rec.fuel_used_kg[j])}
     env.close()
-    return out
+    x0 = np.asarray(rows_nd, dtype=np.float64)
+    n = len(x0)
+    expert = PinpointPontryaginExpert(sc)
+    t0 = time.perf_counter()
+    keep = ("optimal", "nearest", "hold")
+    rec: dict[str, list] = {k: [[] for _ in range(n)]
+                            for k in ("observations", "actions", "t_s", "state_nd", "phi_rad",
+                                      "status")}
+    first = np.full((n, 2), np.nan)  # optimum fuel, tf from the initial state
 
+    def act(obs, venv, active):
+        core = venv.unwrapped
+        expert.match_gate(core)
+        states, times = core.state_nd, core.t_s
+        ang = expert.angles(states, times, float(core.dt_s), active)
+        lab = action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
+                                 sc.beta_bounds_rad).astype(np.float32)
+        status = expert.last_status
+        tgo = expert.feedback.last_tgo_s
+        for i in np.flatnonzero(active):
+            if times[i] == 0.0 and status[i] == "optimal":
+                first[i] = sc.vehicle.mass_flow_kg_s * tgo[i], tgo[i]
+            if status[i] in keep:
+                for key, val in (("observations", obs[i]), ("actions", lab[i]),
+                                 ("t_s", times[i]), ("state_nd", states[i]),
+                                 ("phi_rad", ang[i]), ("status", status[i])):
+                    rec[key][i].append(np.array(val, copy=True))
+        noise = rng.normal(0.0, float(action_noise), lab.shape) if action_noise > 0 else 0.0
+        return np.clip(lab + noise, -1.0, 1.0).astype(np.float32)
 
-def pinpoint_restarts(scenario, optima: list, samples: list, n_restarts: int,
-                      rng: np.random.Generator, dt_s: float,
-                      position_sigma_m: float = 300.0, velocity_sigma_m_s: float = 3.0):
-    """Perturbed mid-flight states and their re-solved optima (the "tube" around the optima).
-
-    Why: the optimal trajectories of the dispersion alone show a policy what to do *on* an
-    optimal path, not how to return to one; a clone trained on them drifts (issue 16,
-    measured: BC on 256 optima 0/50 landings, gate speeds ~40-300 m/s, though its labels are
-    fitted to 0.9° RMS). Each restart takes a decision time of an optimal trajectory (uniform
-    in [0, 0.9 tf)), perturbs the state there (Gaussian, per Moon-fixed axis, ``position_sigma_m``
-    and ``velocity_sigma_m_s`` scaled by sqrt(time to go / tf), so that the perturbation stays
-    correctable as the gate nears) and re-solves the optimum from it (:func:`agents.
-    pinpoint_optimum.replan`, warm-started from the case's optimum): the whole new optimal
-    trajectory becomes samples (Sánchez-Sánchez & Izzo 2018's dataset of optimal trajectories
-    from perturbed states).
-
-    Returns ``(states_nd, start_time_s, optima, parent)``, exactly ``n_restarts`` per case in
-    case order (a case without an optimum gets failed placeholders); failed re-solves are
-    returned too (``success`` False) and certified out.
-    """
-    from agents.pinpoint_optimum import PinpointOptimum, replan
-
-    s = scenario.scaling()
-    states, times, opts, parent = [], [], [], []
-    for i, (opt, smp) in enumerate(zip(optima, samples, strict=True)):
-        if smp is None or not opt.success:
-            for _ in range(int(n_restarts)):
-                states.append(np.full(7, np.nan))
-                times.append(np.nan)
-                opts.append(PinpointOptimum(False, np.nan, np.nan, message="no parent optimum"))
-                parent.append(i)
+    out = fly(env_id, act, n, seed=0, env_kwargs=env_kwargs, reset_options={"state_nd": x0},
+              name="Pontryagin feedback expert")
+    samples = []
+    for i in range(n):
+        if not rec["t_s"][i]:
+            samples.append(None)
             continue
-        n_k = len(smp["t_s"])
-        for _ in range(int(n_restarts)):
-            k = int(rng.integers(0, max(int(0.9 * n_k), 1)))
-            t_r = float(smp["t_s"][k])
-            frac = np.sqrt(max(opt.tf_s - t_r, 0.0) / opt.tf_s)
-            y = np.array(smp["state_nd"][k], dtype=np.float64, copy=True)
-            y[0:3] += rng.normal(0.0, position_sigma_m * frac, 3) / s.length_m
-            y[3:6] += rng.normal(0.0, velocity_sigma_m_s * frac, 3) / s.velocity_m_s
-            states.append(y)
-            times.append(t_r)
-            opts.append(replan(scenario, y, opt, t_r, fallback=False,
-                               max_iter=RESTART_MAX_ITER))
-            parent.append(i)
-    return (np.asarray(states).reshape(-1, 7), np.asarray(times, dtype=np.float64),
-            opts, np.asarray(parent, dtype=np.int64))
+        smp = {k: np.asarray(v[i]) for k, v in rec.items()}
+        smp["observations"] = smp["observations"].astype(np.float32)
+        smp["actions"] = smp["actions"].astype(np.float32)
+        samples.append(smp)
+    return {"samples": samples, "success": out.is_success,
+            "touchdown_speed_m_s": out.touchdown_speed_m_s, "miss_m": out.miss_distance_m,
+            "fuel_kg": out.fuel_used_kg, "optimum_fuel_kg": first[:, 0],
+            "optimum_tf_s": first[:, 1], "wall_s": time.perf_counter() - t0,
+            "status_counts": dict(expert.status_counts)}
 
 
 def _pinpoint_shard_work(job: dict[str, Any]) -> dict[str, np.ndarray]:
-    """Solve (per-case optimum, disk-cached), sample and certify one pinpoint shard."""
-    from agents.pinpoint_optimum import pinpoint_optima
+    """Fly, label and certify one pinpoint shard (see :func:`pinpoint_expert_flights`)."""
     from lunar_env.states import moon3d_nd_to_si
 
     env = _make_env(job["env_id"], job["env_kwargs"])
@@ -416,66 +379,30 @@ def _pinpoint_shard_work(job: dict[str, Any]) -> dict[str, np.ndarray]:
     n_obs = env.observation_space.shape[0]
     env.close()
     x0 = np.asarray(job["rows"], dtype=np.float64)
-    dt_s = float(job["dt_s"])
     t0 = time.perf_counter()
-    opts = pinpoint_optima(sc, x0, workers=1, progress=False)
+    rng = np.random.default_rng([int(job["seed"]), int(job["k"])])
+    fl = pinpoint_expert_flights(x0, job["env_id"], job["env_kwargs"],
+                                 float(job["action_noise"]), rng)
     n = len(x0)
-    n_fine = int(job.get("n_fine", PINPOINT_FINE_HOLDS))
-    samples = pinpoint_trajectory_samples(opts, x0, job["env_id"], job["env_kwargs"], dt_s,
-                                          n_fine)
-    n_rs = int(job.get("n_restarts", 0))
-    start = np.zeros(n)
-    parent = np.full(n, -1, dtype=np.int64)
-    if n_rs:
-        rng = np.random.default_rng([int(job["seed"]), int(job["k"])])
-        r_x0, r_t, r_opts, r_parent = pinpoint_restarts(sc, opts, samples, n_rs, rng, dt_s)
-        good = np.array([o.success for o in r_opts], dtype=bool)
-        r_samples: list = [None] * len(r_opts)
-        if good.any():
-            gi = np.flatnonzero(good)
-            sub = pinpoint_trajectory_samples([r_opts[i] for i in gi], r_x0[gi],
-                                              job["env_id"], job["env_kwargs"], dt_s, n_fine,
-                                              start_time_s=r_t[gi])
-            for i, smp in zip(gi, sub, strict=True):
-                r_samples[i] = smp
-        x0 = np.concatenate([x0, r_x0])
-        opts = list(opts) + list(r_opts)
-        samples = list(samples) + r_samples
-        start = np.concatenate([start, r_t])
-        parent = np.concatenate([parent, job["first_index"] + r_parent])
-        n = len(opts)
-    nan = np.full(n, np.nan)
-    wall = np.array([o.solve_s for o in opts], dtype=np.float64)
-    ok = np.array([o.success for o in opts], dtype=bool)
-    fuel = np.array([o.fuel_kg if o.success else np.nan for o in opts])
-    tf = np.array([o.tf_s if o.success else np.nan for o in opts])
-    fine_ok = np.array([s is not None and s["success"] for s in samples], dtype=bool)
-    err_v = np.array([s["touchdown_speed_m_s"] if s is not None else np.nan for s in samples])
-    err_r = np.array([s["miss_m"] if s is not None else np.nan for s in samples])
-    idx_ok = np.flatnonzero(ok & (parent < 0))  # the dispersed starts only
-    rep_fuel, rep_speed, rep_ok = nan.copy(), nan.copy(), np.zeros(n, dtype=bool)
-    if len(idx_ok):
-        # information only for the pinpoint env (see generate): the labels held open loop
-        rep = replay_labels(job["env_id"], job["env_kwargs"], None,
-                            [samples[i]["actions"] for i in idx_ok],
-                            initial_state_nd=x0[idx_ok])
-        rep_fuel[idx_ok] = rep["fuel_kg"]
-        rep_speed[idx_ok] = rep["touchdown_speed_m_s"]
-        rep_ok[idx_ok] = rep["success"]
-    cert = ok & fine_ok & (err_v <= job["tol_speed_m_s"]) & (err_r <= job["tol_radius_m"])
+    samples = fl["samples"]
+    ok = np.isfinite(fl["optimum_fuel_kg"])
+    err_v = np.asarray(fl["touchdown_speed_m_s"], dtype=np.float64)
+    err_r = np.asarray(fl["miss_m"], dtype=np.float64)
+    flown_ok = np.asarray(fl["success"], dtype=bool)
+    cert = (ok & flown_ok & np.array([s is not None for s in samples])
+            & (err_v <= job["tol_speed_m_s"]) & (err_r <= job["tol_radius_m"]))
     out: dict[str, Any] = {
         "initial_state_si": moon3d_nd_to_si(x0, sc.scaling()), "solver_success": ok,
-        "start_time_s": start, "parent_index": parent,
-        "fuel_kg": fuel, "tf_s": tf, "terminal_error_radius_m": err_r,
-        "terminal_error_speed_m_s": err_v, "replay_fuel_kg": rep_fuel,
-        "replay_touchdown_speed_m_s": rep_speed, "replay_success": rep_ok,
-        "replay_fuel_gap_kg": rep_fuel - fuel, "certified": cert, "solve_wall_s": wall,
+        "start_time_s": np.zeros(n), "parent_index": np.full(n, -1, dtype=np.int64),
+        "fuel_kg": fl["optimum_fuel_kg"], "tf_s": fl["optimum_tf_s"],
+        "terminal_error_radius_m": err_r, "terminal_error_speed_m_s": err_v,
+        "replay_fuel_kg": np.asarray(fl["fuel_kg"], dtype=np.float64),
+        "replay_touchdown_speed_m_s": err_v, "replay_success": flown_ok,
+        "replay_fuel_gap_kg": np.asarray(fl["fuel_kg"], dtype=np.float64)
+        - fl["optimum_fuel_kg"], "certified": cert,
+        "solve_wall_s": np.full(n, fl["wall_s"] / max(n, 1)),
     }
-    # per-trajectory rows of this shard: its cases, then n_restarts per case; shard k starts
-    # at row first_index * (1 + n_restarts) of the merged arrays (every shard but the last is
-    # full), so traj_index is the row of the merged per-trajectory arrays
-    _collect_samples(out, samples, cert, job["first_index"] * (1 + n_rs), n_obs, n_act=2, nx=7,
-                     n_angle=2)
+    _collect_samples(out, samples, cert, job["first_index"], n_obs, n_act=2, nx=7, n_angle=2)
     out["wall_s"] = np.array(time.perf_counter() - t0)
     return out
 
@@ -590,7 +517,7 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
              check: str = "doubling", tol_radius_m: float | None = None,
              tol_speed_m_s: float | None = None,
              progress: bool = True, max_shards: int | None = None,
-             executor=None, n_restarts: int = 0) -> ImitationDataset | None:
+             executor=None, action_noise: float | None = None) -> ImitationDataset | None:
     """Generate (or resume) a dataset; returns it once every shard is done.
 
     Parameters
@@ -611,14 +538,14 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         Passed to :func:`optimizers.pontryagin.solve_many`.
     tol_radius_m, tol_speed_m_s : float, optional
         Certification tolerances. Soft landing: on the solver's terminal errors (default
-        1e-3 m, 1e-3 m/s). Pinpoint: on the gate miss and gate speed of the optimum replayed at
-        fine holds (:func:`pinpoint_trajectory_samples`; default :data:`PINPOINT_TOLERANCES`),
-        on top of the env's own success verdict.
+        1e-3 m, 1e-3 m/s). Pinpoint: on the gate miss and gate speed of the expert's own flight
+        (:func:`pinpoint_expert_flights`; default :data:`PINPOINT_TOLERANCES`), on top of the
+        env's success verdict.
     max_shards : int, optional
         Stop after this many new shards (simulates an interruption; returns None).
-    n_restarts : int
-        Pinpoint only: perturbed mid-flight restarts per trajectory, each re-solved and
-        sampled like a trajectory of its own (:func:`pinpoint_restarts`).
+    action_noise : float, optional
+        Pinpoint only: standard deviation of the Gaussian noise on the expert's flown actions
+        (default :data:`PINPOINT_ACTION_NOISE`; 0 gives the optimal trajectories themselves).
     executor : optimizers.common.executor.Executor, optional
         Runs the shards (e.g. a Ray cluster: ``--address``); overrides ``n_workers``. The
         caller keeps ownership. Each shard is a task keyed (scenario, seed, shard index),
@@ -650,19 +577,19 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         tol_radius_m = PINPOINT_TOLERANCES["radius_m"] if tol_radius_m is None else tol_radius_m
         tol_speed_m_s = (PINPOINT_TOLERANCES["speed_m_s"] if tol_speed_m_s is None
                          else tol_speed_m_s)
-        solver_meta = {"name": "agents.pinpoint_optimum.pinpoint_optima (serial GPM + direct "
-                               "shooting, gate floor and clearance, disk cache)",
-                       "fine_holds": PINPOINT_FINE_HOLDS, "n_restarts": int(n_restarts),
-                       "restarts": "agents.dataset.pinpoint_restarts (replan from perturbed "
-                                   "mid-flight states)"}
+        action_noise = PINPOINT_ACTION_NOISE if action_noise is None else float(action_noise)
+        if not (np.isfinite(action_noise) and action_noise >= 0.0):
+            raise ValueError(f"action_noise = {action_noise!r} must be finite and >= 0")
+        solver_meta = {"name": "agents.experts.PinpointPontryaginExpert (the minimum-fuel "
+                               "extremal from every visited state, optimizers.indirect."
+                               "pinpoint_feedback)", "action_noise": action_noise}
         cert_meta = {"tol_radius_m": tol_radius_m, "tol_speed_m_s": tol_speed_m_s,
-                     "replay": f"law replayed at dt_s/{PINPOINT_FINE_HOLDS} holds: is_success "
-                               "and gate miss / speed within the tolerances; the labels held "
-                               "open loop at dt_s are replayed for information (replay_*)"}
+                     "replay": "the expert's own flight (with the action noise): is_success "
+                               "and gate miss / speed within the tolerances"}
     else:
-        if int(n_restarts):
-            raise ValueError(f"n_restarts = {n_restarts}: restarts are defined for the "
-                             "pinpoint env only")
+        if action_noise is not None:
+            raise ValueError(f"action_noise = {action_noise!r}: defined for the pinpoint env "
+                             "only (soft-landing datasets sample the optimal trajectories)")
         rows = sc.sample_initial(np.random.default_rng(int(seed)), int(n))
         tol_radius_m = 1e-3 if tol_radius_m is None else tol_radius_m
         tol_speed_m_s = 1e-3 if tol_speed_m_s is None else tol_speed_m_s
@@ -705,7 +632,7 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
                      "env_kwargs": dict(env_kwargs or {}), "dt_s": dt_s, "n_steps": int(n_steps),
                      "check": check, "tol_radius_m": float(tol_radius_m),
                      "tol_speed_m_s": float(tol_speed_m_s), "pinpoint": pinpoint,
-                     "n_restarts": int(n_restarts), "seed": int(seed)})
+                     "action_noise": action_noise, "seed": int(seed)})
     if max_shards is not None:
         jobs = jobs[:int(max_shards)]
     bar = None
@@ -794,9 +721,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tol-speed-m-s", type=float, default=None,
                    help="certification tolerance (default 1e-3 m/s soft landing, "
                         f"{PINPOINT_TOLERANCES['speed_m_s']:g} m/s gate speed pinpoint)")
-    p.add_argument("--restarts", type=int, default=0,
-                   help="pinpoint: perturbed mid-flight restarts per trajectory, each re-solved "
-                        "(the tube of optimal trajectories around the dispersion's optima)")
+    p.add_argument("--noise", type=float, default=None,
+                   help="pinpoint: standard deviation of the action noise on the expert's "
+                        f"flights (default {PINPOINT_ACTION_NOISE:g}; 0: the optimal "
+                        "trajectories themselves)")
     p.add_argument("--no-progress", action="store_true")
     args = p.parse_args(argv)
     env_kwargs = {}
@@ -816,7 +744,7 @@ def main(argv: list[str] | None = None) -> int:
                       seed=args.seed, n_workers=args.workers, shard_size=args.shard_size,
                       n_steps=args.n_steps, check=args.check, tol_radius_m=args.tol_radius_m,
                       tol_speed_m_s=args.tol_speed_m_s, progress=not args.no_progress,
-                      executor=executor, n_restarts=args.restarts)
+                      executor=executor, action_noise=args.noise)
     finally:
         if executor is not None:
             executor.close()

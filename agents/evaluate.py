@@ -382,12 +382,14 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
             seed: int = DEFAULT_SEED, env_kwargs: dict[str, Any] | None = None,
             open_loop: bool = True, n_expert_states: int = DEFAULT_EXPERT_STATES,
             trace_cases: int = 3, progress: bool = True,
-            optimum_workers: int = 1, optimum_executor=None) -> dict[str, Any]:
+            optimum_workers: int = 1, optimum_executor=None,
+            feedback_expert: bool = True) -> dict[str, Any]:
     """Run ``policies`` and the optimiser baselines over one case set; return the report dict.
 
     ``optimum_executor`` (:mod:`optimizers.common.executor`, e.g. Ray) runs the per-case optima
     (default: this process for the planar ones, ``optimum_workers`` processes for the pinpoint
-    ones).
+    ones). ``feedback_expert`` (pinpoint): also fly the Pontryagin feedback expert
+    (:class:`agents.experts.PinpointPontryaginExpert`, the DAgger oracle) on every case.
 
     Keys: ``env_id``, ``seed``, ``n_states``, ``rows`` (one summary per policy, see the module
     docstring), ``optimum`` (per-case optimal fuel summary and solver wall time), ``results``
@@ -437,6 +439,10 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
         all_policies.append((OpenLoopPolicy(sols), n_states))
     if not planar and open_loop:
         all_policies.append((PinpointOpenLoopPolicy(sols), n_states))
+    if not planar and feedback_expert:
+        from agents.experts import PinpointPontryaginExpert
+
+        all_policies.append((PinpointPontryaginExpert(scenario), n_states))
     if not planar and n_expert_states and n_expert_states > 0:
         from agents.pinpoint_optimum import PinpointReplanningPolicy
 

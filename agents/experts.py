@@ -26,7 +26,7 @@ from optimizers.indirect.planar import (
 from optimizers.transcription.collocation import solve_planar_min_time_collocation
 
 __all__ = ["PontryaginExpert", "STATUS_OPTIMAL", "STATUS_HOLD", "STATUS_FALLBACK",
-           "STATUS_CONSTRAINED"]
+           "STATUS_CONSTRAINED", "PinpointPontryaginExpert"]
 
 N_STATE = len(dyn.PLANAR_STATE_NAMES)
 
@@ -186,3 +186,67 @@ class PontryaginExpert:
             return self.braking_angle(row), STATUS_FALLBACK, math.nan
         self._memory[b] = (sol, t, float(row[4]))
         return float(optimal_thrust_angle(sol.x0_nd, sol.costates0)), STATUS_OPTIMAL, sol.fuel_kg
+
+
+class PinpointPontryaginExpert:
+    """Closed-loop optimal feedback for ``LunarPinpointLanding-v*``: at every decision the
+    minimum-time extremal from the lander's current state (:class:`optimizers.indirect.
+    pinpoint_feedback.PinpointFeedback`, compiled Pontryagin shooting warm-started from the
+    previous decision's extremal, ~1-15 ms), flown over the env step as its mean angle.
+
+    A policy for :func:`agents.evaluate.compare` (``reset`` / ``act``) and the DAgger oracle of
+    :mod:`agents.imitation` (:meth:`label`). Where the target is out of reach (a lander too
+    fast to stop at it), the extremal to the nearest reachable stop on the track is flown;
+    the per-decision statuses are counted in :attr:`status_counts`.
+
+    Parameters
+    ----------
+    scenario : PinpointScenario
+    feedback_kwargs : forwarded to :class:`PinpointFeedback` (``step_s``, ``hold_s``, ...).
+    """
+
+    name = "Pontryagin feedback expert"
+
+    def __init__(self, scenario, **feedback_kwargs) -> None:
+        from optimizers.indirect.pinpoint_feedback import PinpointFeedback
+
+        self.scenario = scenario
+        self.feedback = PinpointFeedback(scenario, **feedback_kwargs)
+        self.status_counts: dict[str, int] = {}
+        #: landers still flying (set by agents.evaluate.rollout; None: all)
+        self.active: np.ndarray | None = None
+
+    def reset(self, venv=None, case_ids=None) -> None:
+        self.feedback.reset()
+
+    def angles(self, states_nd: np.ndarray, t_s: np.ndarray, dt_s: float,
+               active: np.ndarray | None = None) -> np.ndarray:
+        """(α, β) (rad), (B, 2), of the extremals from states (B, 7) at episode times (B,)."""
+        ang = self.feedback(states_nd, t_s, dt_s, active)
+        act = np.ones(len(ang), dtype=bool) if active is None else np.asarray(active, bool)
+        for st, a in zip(self.feedback.last_status, act, strict=True):
+            if a:
+                self.status_counts[st] = self.status_counts.get(st, 0) + 1
+        return ang
+
+    def act(self, obs: np.ndarray, venv, active: np.ndarray | None = None) -> np.ndarray:
+        from lunar_env.envs.pinpoint_landing import action_from_angles
+
+        core = getattr(venv, "unwrapped", venv)
+        self.match_gate(core)
+        ang = self.angles(core.state_nd, core.t_s, float(core.dt_s),
+                          self.active if active is None else active)
+        sc = core.scenario
+        return action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
+                                  sc.beta_bounds_rad).astype(np.float32)
+
+    def match_gate(self, env) -> None:
+        """Keep the extremals above the gate where ``env`` counts it (its ``gate_range_m``:
+        near the target in v2, everywhere in v0/v1)."""
+        task = getattr(env, "_task", None)
+        if task is not None and hasattr(task, "gate_range_m"):
+            self.feedback.gate_floor_range_m = task.gate_range_m
+
+    @property
+    def last_status(self) -> list[str]:
+        return self.feedback.last_status

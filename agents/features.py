@@ -45,17 +45,20 @@ from collections.abc import Sequence
 
 import numpy as np
 from gymnasium import spaces
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
 
 __all__ = ["FEATURE_WIDTHS", "augment_observation", "feature_constants", "validate_features",
-           "ObsFeatureWrapper"]
+           "ObsFeatureWrapper", "StandardizedInputs", "standardized_inputs_kwargs",
+           "reference_profile"]
 
 #: columns added by each feature name, in the order they are appended
 FEATURE_WIDTHS = {"log_altitude": 1, "fine_velocity": 2, "stopping_ratio": 1,
                   "time_to_go": 2, "fuel_margin": 1}
 #: the same for ``LunarPinpointLanding-v*`` (9 observations; see :func:`_augment_pinpoint`)
 PINPOINT_FEATURE_WIDTHS = {"log_altitude": 1, "fine_range": 3, "fine_velocity": 3,
-                           "stopping_ratio": 1, "time_to_go": 2, "fuel_margin": 1}
+                           "stopping_ratio": 1, "time_to_go": 2, "fuel_margin": 1,
+                           "reference_profile": 7, "stop_point": 4}
 
 
 def validate_features(names: Sequence[str] | None) -> list[str]:
@@ -93,7 +96,52 @@ def feature_constants(env) -> dict:
                         "only") from None
     consts["decode"] = env.observation_quantities
     consts["pinpoint"] = bool(getattr(env, "has_target", False))
+    if consts["pinpoint"]:
+        consts["scenario"] = env.scenario
+        consts["observation_from_state"] = getattr(env, "observation_from_state", None)
     return consts
+
+
+#: nominal optimal profiles by scenario (see :func:`reference_profile`)
+_PROFILES: dict = {}
+
+
+def reference_profile(consts: dict) -> dict[str, np.ndarray]:
+    """The nominal minimum-fuel descent of a pinpoint scenario as a function of the along-track
+    distance to the target: the Pontryagin extremal from the scenario's nominal start
+    (:mod:`optimizers.indirect.pinpoint_feedback`, every 0.5 s), decoded like an observation.
+
+    Returns arrays sorted by ``along_m`` (increasing): ``altitude_m``, ``target_cross_m``,
+    ``u_m_s``, ``v_m_s``, ``w_m_s``, ``propellant_kg``, ``time_s``. Cached per scenario.
+    """
+    sc = consts["scenario"]
+    key = repr(sc)
+    if key not in _PROFILES:
+        from optimizers.indirect.pinpoint_feedback import (
+            PinpointFeedback,
+            extremal_path,
+            solve_extremal,
+        )
+
+        fb = PinpointFeedback(sc)
+        x0 = sc.state_nd(scaling=sc.scaling())
+        # solved and integrated on the same 0.5 s grid: the shooting's endpoint is sensitive
+        # to the grid (the first ~20 s fly the α bound), so a path integrated on another grid
+        # than its solve misses the target by metres
+        sol = solve_extremal(fb.k, x0, fb.nominal_costates(), step_s=0.5)
+        if not sol.converged:  # pragma: no cover  (measured: converges in 2 iterations)
+            raise RuntimeError("no nominal extremal for the reference profile")
+        t, path = extremal_path(fb.k, x0, sol.z, step_s=0.5)
+        to_obs = consts["observation_from_state"]
+        q = consts["decode"](to_obs(path[:, :7], t))
+        order = np.argsort(q["target_along_m"])
+        prof = {k: np.asarray(q[k], dtype=np.float64)[order]
+                for k in ("altitude_m", "target_cross_m", "u_m_s", "v_m_s", "w_m_s",
+                          "propellant_kg")}
+        prof["time_s"] = t[order]
+        prof["along_m"] = np.asarray(q["target_along_m"], dtype=np.float64)[order]
+        _PROFILES[key] = prof
+    return _PROFILES[key]
 
 
 def augment_observation(obs: np.ndarray, consts: dict[str, float],
@@ -163,6 +211,21 @@ def _augment_pinpoint(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np
     motion just reaches the target distance: the braking timing of a constant-thrust lander);
     ``time_to_go`` full-thrust braking time v/(F/m) and |d|/max(v, 1 m/s), both /100 s, clipped
     to [0, 10]; ``fuel_margin`` (propellant − m(1 − exp(−v/v_e)))/nominal propellant.
+
+    ``reference_profile`` (7): the deviation of the lander from the nominal optimal descent
+    (:func:`reference_profile`) *at the same along-track distance to the target*: altitude and
+    cross-track offset / 300 m, u, v, w / 10 m/s, propellant / 10 kg, time / 20 s, clipped to
+    ±20. ``stop_point`` (4): where a straight-line stop (thrust plus gravity against the
+    velocity) would end, as the offset target − stop point (radial, along, cross) in
+    sign·log(1 + |x|/10 m)/8, and that braking time / 100 s.
+
+    Why these two (issue 16, measured with behaviour cloning of the Pontryagin feedback): the
+    stop point of a constant-thrust lander is the difference of two ~100 km quantities (range
+    to go and braking distance), so with the other features an error of 100 m of range is a
+    1e-5 change of the inputs, below what a regression resolves; a clone then drifts 1-10 km
+    (0 % success). The deviation from the reference profile at the same range gives "too fast
+    / too high for the distance left" directly in m/s and m (clone miss 9.7 km -> 0.2 km), and
+    the stop point gives the last ~30 s their scale in metres.
     """
     if obs.ndim != 2 or obs.shape[1] != 9:
         raise ValueError(f"obs shape {obs.shape}: expected (B, 9) pinpoint observations")
@@ -196,6 +259,27 @@ def _augment_pinpoint(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np
         elif name == "fuel_margin":
             need = m * -np.expm1(-speed / consts["exhaust_velocity_m_s"])
             cols.append((prop - need) / consts["prop_nominal_kg"])
+        elif name == "reference_profile":
+            prof = reference_profile(consts)
+            for key, scale in (("altitude_m", 300.0), ("target_cross_m", 300.0),
+                               ("u_m_s", 10.0), ("v_m_s", 10.0), ("w_m_s", 10.0),
+                               ("propellant_kg", 10.0), ("time_s", 20.0)):
+                ref = np.interp(q["target_along_m"], prof["along_m"], prof[key])
+                cols.append(np.clip((q[key] - ref) / scale, -20.0, 20.0))
+        elif name == "stop_point":
+            # straight-line braking: thrust + gravity antiparallel to the velocity, net
+            # deceleration k from |k v̂ − g| = F/m (g radial, down), stop after τ = v/k at
+            # r + v τ/2; the offset target − stop point in the orbital frame
+            r = consts["gate_radius_m"] + q["altitude_m"]
+            g = consts["mu_m3_s2"] / (r * r)
+            vhat_r = vel[:, 0] / np.maximum(speed, 1e-9)
+            k = g * vhat_r + np.sqrt(np.maximum(a_thrust ** 2 - g * g * (1.0 - vhat_r ** 2),
+                                                1e-9))
+            tau = speed / np.maximum(k, 1e-9)
+            off = d - vel * (0.5 * tau)[:, None]
+            cols += [np.sign(off[:, j]) * np.log1p(np.abs(off[:, j]) / 10.0) / 8.0
+                     for j in range(3)]
+            cols.append(np.clip(tau / 100.0, 0.0, 10.0))
     out = np.concatenate([o, np.stack(cols, axis=1)], axis=1)
     return out.astype(np.float32)
 
@@ -208,7 +292,8 @@ def _feature_bounds(names: Sequence[str], pinpoint: bool = False
             w = PINPOINT_FEATURE_WIDTHS[name]
             b = {"log_altitude": (0.0, 2.0), "fine_range": (-2.0, 2.0),
                  "fine_velocity": (-2.0, 2.0), "stopping_ratio": (0.0, 8.0),
-                 "time_to_go": (0.0, 10.0), "fuel_margin": (-2.0, 2.0)}[name]
+                 "time_to_go": (0.0, 10.0), "fuel_margin": (-2.0, 2.0),
+                 "reference_profile": (-20.0, 20.0), "stop_point": (-2.0, 10.0)}[name]
             lo += [b[0]] * w
             hi += [b[1]] * w
         return lo, hi
@@ -275,3 +360,44 @@ class ObsFeatureWrapper(VecEnvWrapper):
             if t is not None:
                 info["terminal_observation"] = self._aug(np.asarray(t)[None])[0]
         return self._aug(obs), rew, done, infos
+
+
+class StandardizedInputs(BaseFeaturesExtractor):
+    """Flatten and standardise the policy input with fixed statistics: (x − mean)/std.
+
+    A features extractor for SB3 policies trained by regression (behaviour cloning, DAgger):
+    the statistics are those of the training inputs, stored as buffers in the policy's state
+    dict and as ``features_extractor_kwargs`` in the saved model, so ``PPO.load`` and
+    ``train.py --init-from`` rebuild the same input map (PPO's own ``VecNormalize`` plays this
+    role in RL runs). Why: the pinpoint inputs span very different scales (stop offsets of
+    metres in a log column, times of hundreds of seconds), and the clone's angle error reaches
+    the ~0.1° it needs only on standardised inputs (issue 16).
+    """
+
+    def __init__(self, observation_space, mean=None, std=None) -> None:
+        import torch as th
+
+        n = int(np.prod(observation_space.shape))
+        super().__init__(observation_space, features_dim=n)
+        m = np.zeros(n) if mean is None else np.asarray(mean, dtype=np.float64)
+        s = np.ones(n) if std is None else np.asarray(std, dtype=np.float64)
+        if m.shape != (n,) or s.shape != (n,) or not (np.isfinite(m).all() and np.all(s > 0)):
+            raise ValueError(f"mean/std must be {n} finite numbers (std > 0)")
+        self.register_buffer("mean", th.as_tensor(m, dtype=th.float32))
+        self.register_buffer("std", th.as_tensor(s, dtype=th.float32))
+
+    def forward(self, observations):
+        import torch as th
+
+        return (th.flatten(observations, start_dim=1) - self.mean) / self.std
+
+
+def standardized_inputs_kwargs(inputs: np.ndarray) -> dict:
+    """``policy_kwargs`` entries that standardise a policy's inputs with the statistics of
+    ``inputs`` (N, n_in) (std floored at 1e-6 of the largest, for constant columns)."""
+    x = np.asarray(inputs, dtype=np.float64)
+    std = x.std(axis=0)
+    std = np.maximum(std, 1e-6 * max(float(std.max()), 1e-12))
+    return {"features_extractor_class": StandardizedInputs,
+            "features_extractor_kwargs": {"mean": x.mean(axis=0).tolist(),
+                                          "std": std.tolist()}}

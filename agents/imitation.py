@@ -75,13 +75,18 @@ def _policy_kwargs(pk: dict[str, Any]) -> dict[str, Any]:
 
 
 def build_model(env_id: str, env_kwargs: dict[str, Any] | None, policy_kwargs: dict[str, Any],
-                seed: int, device: str = "cpu", obs_features: list[str] | None = None):
+                seed: int, device: str = "cpu", obs_features: list[str] | None = None,
+                standardize_inputs: np.ndarray | bool | None = None):
     """A fresh SB3 PPO model (MlpPolicy) on a one-lander SB3 vec env of ``env_id``.
 
     Only its policy is trained here; the PPO wrapper makes the saved zip loadable by
     ``PPO.load`` and fine-tunable. ``obs_features`` (:mod:`agents.features`) widen its input
     as in RL training; the run's ``config.yml`` records them, so :class:`agents.evaluate.
     SB3Policy` and ``train.py --init-from`` apply the same inputs.
+
+    ``standardize_inputs``: an array of policy inputs (N, n_in) whose statistics the policy
+    standardises its inputs with (:class:`agents.features.StandardizedInputs`), or True for
+    placeholder statistics that a loaded state dict replaces.
     """
     from stable_baselines3 import PPO
 
@@ -92,8 +97,15 @@ def build_model(env_id: str, env_kwargs: dict[str, Any] | None, policy_kwargs: d
         from agents.features import ObsFeatureWrapper
 
         venv = ObsFeatureWrapper(venv, obs_features)
-    return PPO("MlpPolicy", venv, policy_kwargs=_policy_kwargs(policy_kwargs), seed=seed,
-               device=device, verbose=0)
+    pk = _policy_kwargs(policy_kwargs)
+    if standardize_inputs is not None and standardize_inputs is not False:
+        from agents.features import StandardizedInputs, standardized_inputs_kwargs
+
+        if isinstance(standardize_inputs, np.ndarray):
+            pk.update(standardized_inputs_kwargs(standardize_inputs))
+        else:
+            pk["features_extractor_class"] = StandardizedInputs
+    return PPO("MlpPolicy", venv, policy_kwargs=pk, seed=seed, device=device, verbose=0)
 
 
 def policy_inputs(env_id: str, env_kwargs: dict[str, Any] | None,
@@ -302,11 +314,13 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
     bc = hp["bc"]
     seed = int(run["seed"])
     th.manual_seed(seed)
-    model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed, run["device"],
-                        hp.get("obs_features"))
-    policy = model.policy
+    obs = policy_inputs(run["env"], env_kwargs, hp.get("obs_features"))(ds.observations)
     rng = np.random.default_rng(seed)
     train_mask, val_mask = _split_by_trajectory(ds, float(bc.get("val_fraction", 0.0)), rng)
+    model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed, run["device"],
+                        hp.get("obs_features"),
+                        obs[train_mask] if hp.get("standardize_inputs") else None)
+    policy = model.policy
     ckdir = run_dir / "checkpoints"
     ckdir.mkdir(parents=True, exist_ok=True)
     optimizer = None
@@ -340,7 +354,6 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
             os.replace(tmp, ckdir / f"bc_epoch_{epoch}.pt")
 
     logger = _logger(run_dir, not run.get("no_tensorboard"))
-    obs = policy_inputs(run["env"], env_kwargs, hp.get("obs_features"))(ds.observations)
     act = ds.actions
     t0 = time.perf_counter()
     stats = fit_policy(policy, obs[train_mask], act[train_mask], n_epochs=int(bc["n_epochs"]),
@@ -391,98 +404,154 @@ def rollout_policy(model, env_id: str, env_kwargs: dict[str, Any] | None, n_epis
     return out
 
 
-def _label_chunk_pinpoint(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
-    """Pinpoint labels: the re-planning expert (:func:`agents.pinpoint_optimum.replan`) at each
-    chosen state. Per episode the first plan is the per-case optimum of its initial state
-    (disk-cached), and every label re-solves from the visited state by direct shooting
-    warm-started from the previous label's plan shifted in time (the DAgger oracle of issue
-    16). Label = the new plan's law averaged over the env step (the dataset's rule); a failed
-    re-plan gives status "fallback" (the previous plan's law; dropped by default). Decision:
-    no full serial re-solve from the nominal guess after a failed warm shooting (measured on
-    perturbed mid-flight states: it rarely converges there and costs 10-25 s a label)."""
+def _pinpoint_dagger_chunk(job: dict[str, Any]) -> dict[str, Any]:
+    """Fly one chunk of DAgger roll-outs on a pinpoint env and label every visited state with
+    the Pontryagin feedback expert (a worker process; see :func:`pinpoint_dagger_rollouts`)."""
     import warnings
 
-    from agents.pinpoint_optimum import pinpoint_optima, replan
+    import torch as th
+
+    from agents.experts import PinpointPontryaginExpert
+    from agents.rollout import fly
     from lunar_env import get_scenario
     from lunar_env.envs.pinpoint_landing import action_from_angles
 
+    th.set_num_threads(1)
+    model = load_policy_model(job["model"])
+    inputs = policy_inputs(job["env_id"], job["env_kwargs"], job["obs_features"])
     sc = get_scenario(job["scenario"])
-    dt_s = float(job["dt_s"])
-    res = []
-    plans: list = []  # (plan, state, episode time) of every successful re-plan
-    for ep in job["episodes"]:
-        idx = ep["label_idx"]
-        ang = np.zeros((len(idx), 2))
-        status: list[str] = []
+    expert = PinpointPontryaginExpert(sc)
+    n = int(job["n_episodes"])
+    switch = np.asarray(job["switch_s"], dtype=np.float64)
+    keep = ("optimal", "nearest", "hold")
+    rec: dict[str, list] = {k: [] for k in ("obs", "actions", "phi_rad", "status")}
+
+    def act(obs, venv, active):
+        core = venv.unwrapped
+        expert.match_gate(core)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            plan = pinpoint_optima(sc, ep["state_nd"][:1], progress=False)[0]
-        t_plan = float(ep["t_s"][0])
-        n_fallback = 0
-        n_done = len(idx)
-        for j, k in enumerate(idx):
-            since = float(ep["t_s"][k]) - t_plan
-            st = "optimal"
-            if not plan.success:
-                st = "fallback"
-            elif since > 1e-9:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    new = replan(sc, ep["state_nd"][k], plan, since, fallback=False)
-                if new.success:
-                    plan, t_plan, since = new, float(ep["t_s"][k]), 0.0
-                    plans.append((new, ep["state_nd"][k], t_plan))
-                else:
-                    st = "fallback"
-            n_fallback = n_fallback + 1 if st == "fallback" else 0
-            if n_fallback > int(job.get("max_fallbacks", 2)):
-                n_done = j  # decision as for soft landing: no landing from here on
-                break
-            ang[j] = plan.mean_angles(since, dt_s) if plan.success else (0.0, np.pi)
-            status.append(st)
-        idx, ang = idx[:n_done], ang[:n_done]
-        res.append({"obs": ep["obs"][idx],
-                    "actions": action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
-                                                  sc.beta_bounds_rad).astype(np.float32),
-                    "phi_rad": ang, "status": np.array(status[:n_done], dtype="<U12")})
-    if job.get("plan_samples") and plans:
-        res.append(_plan_samples(job, plans))
+            ang = expert.angles(core.state_nd, core.t_s, float(core.dt_s), active)
+        lab = action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
+                                 sc.beta_bounds_rad).astype(np.float32)
+        st = np.asarray(expert.last_status)
+        m = active & np.isin(st, keep)
+        rec["obs"].append(np.asarray(obs)[m])
+        rec["actions"].append(lab[m])
+        rec["phi_rad"].append(ang[m])
+        rec["status"].append(st[m].astype("<U12"))
+        pol = model.predict(inputs(obs), deterministic=True)[0]
+        return np.where((core.t_s < switch)[:, None], lab, pol).astype(np.float32)
+
+    out = fly(job["env_id"], act, n, seed=int(job["seed"]), env_kwargs=job["env_kwargs"],
+              name="DAgger roll-out")
+    res = {k: np.concatenate(v) for k, v in rec.items()}
+    res.update(success=out.is_success, fuel_kg=out.fuel_used_kg,
+               touchdown_speed_m_s=out.touchdown_speed_m_s, miss_m=out.miss_distance_m,
+               learner_only=switch <= 0.0)
     return res
 
 
-def _plan_samples(job: dict[str, Any], plans: list) -> dict[str, np.ndarray]:
-    """Every step of each re-plan's optimal trajectory from the visited state, sampled and
-    certified like a dataset trajectory (:func:`agents.dataset.pinpoint_trajectory_samples`:
-    the plan flown at fine holds must land within the dataset's tolerances). Status "plan".
+def pinpoint_dagger_rollouts(model_path: str | Path, env_id: str,
+                             env_kwargs: dict[str, Any] | None, n_episodes: int, seed: int,
+                             obs_features: list[str] | None, beta: float, n_workers: int = 1,
+                             cache_dir: str | Path | None = None, progress: bool = True
+                             ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """One DAgger iteration's data on a pinpoint env: roll-outs of the policy saved at
+    ``model_path`` from ``n_episodes`` dispersed starts (sub-env i seeded ``seed + i``), every
+    visited state labelled by the Pontryagin feedback expert
+    (:class:`agents.experts.PinpointPontryaginExpert`, the extremal from that state).
 
-    Why: a re-plan costs 0.3-2 s and yields the optimal trajectory from an on-policy state to
-    the gate; labelling only its first step (classic DAgger) uses one sample of it."""
-    from agents.dataset import PINPOINT_TOLERANCES, pinpoint_trajectory_samples
+    Mixing (Ross et al. 2011's β): with probability ``beta`` an episode is flown by the expert
+    up to a switch time drawn uniformly in [0, 540] s and by the policy after it, otherwise by
+    the policy throughout; so the labelled states include the policy's own mistakes from every
+    phase of the descent, not only from the start. The success rate reported is that of the
+    policy-only episodes.
 
-    opts = [p[0] for p in plans]
-    x0 = np.array([p[1] for p in plans], dtype=np.float64)
-    t0 = np.array([p[2] for p in plans], dtype=np.float64)
-    smp = pinpoint_trajectory_samples(opts, x0, job["env_id"], job.get("env_kwargs"),
-                                      float(job["dt_s"]), start_time_s=t0)
-    keep = [s for s in smp if s is not None and s["success"]
-            and s["touchdown_speed_m_s"] <= PINPOINT_TOLERANCES["speed_m_s"]
-            and s["miss_m"] <= PINPOINT_TOLERANCES["radius_m"]]
-    if not keep:
-        return {"obs": np.zeros((0, 9), np.float32), "actions": np.zeros((0, 2), np.float32),
-                "phi_rad": np.zeros((0, 2)), "status": np.zeros(0, dtype="<U12")}
-    n = sum(len(s["t_s"]) for s in keep)
-    return {"obs": np.concatenate([s["observations"] for s in keep]),
-            "actions": np.concatenate([s["actions"] for s in keep]),
-            "phi_rad": np.concatenate([s["phi_rad"] for s in keep]),
-            "status": np.full(n, "plan", dtype="<U12")}
+    ``cache_dir``: each chunk's labels are kept there (``part_<k>.npz``) and reused on resume.
+    Labels whose solve did not converge (status "stale"/"fallback") are not returned.
+    """
+    rng = np.random.default_rng([int(seed), 7])
+    switch = np.where(rng.random(int(n_episodes)) < float(beta),
+                      rng.uniform(0.0, 540.0, int(n_episodes)), 0.0)
+    n_workers = max(1, min(int(n_workers), int(n_episodes)))
+    bounds = np.linspace(0, int(n_episodes), n_workers + 1).astype(int)
+    from agents.dataset import _make_env
+
+    env = _make_env(env_id, env_kwargs)
+    scenario = env.scenario.name
+    env.close()
+    jobs = [{"model": str(model_path), "env_id": env_id, "env_kwargs": dict(env_kwargs or {}),
+             "obs_features": obs_features, "scenario": scenario, "seed": int(seed) + int(lo),
+             "n_episodes": int(hi - lo), "switch_s": switch[lo:hi].tolist()}
+            for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
+    cache = Path(cache_dir) if cache_dir is not None else None
+    results: list[dict[str, Any] | None] = [None] * len(jobs)
+
+    def _part(i: int) -> Path:
+        return cache / f"part_{i:04d}.npz"
+
+    todo = []
+    for i in range(len(jobs)):
+        if cache is not None and _part(i).exists():
+            try:
+                with np.load(_part(i)) as z:
+                    results[i] = {k: z[k] for k in z.files}
+                continue
+            except Exception as exc:  # a damaged part: fly those episodes again
+                print(f"DAgger part {_part(i)} is damaged ({type(exc).__name__}); flying again")
+        todo.append(i)
+
+    def _keep(i: int, res: dict[str, Any]) -> None:
+        results[i] = res
+        if cache is not None:
+            cache.mkdir(parents=True, exist_ok=True)
+            tmp = _part(i).with_suffix(".tmp.npz")
+            np.savez(tmp, **res)
+            os.replace(tmp, _part(i))
+
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(jobs), desc=f"DAgger roll-outs + expert labels ({n_workers} proc)",
+                   unit="chunk")
+    try:
+        if n_workers == 1:
+            for i in todo:
+                _keep(i, _pinpoint_dagger_chunk(jobs[i]))
+                if bar is not None:
+                    bar.update(1)
+        else:
+            from concurrent.futures import as_completed
+
+            from agents.runs import process_pool
+
+            with process_pool(n_workers) as ex:
+                futs = {ex.submit(_pinpoint_dagger_chunk, jobs[i]): i for i in todo}
+                for fut in as_completed(futs):
+                    _keep(futs[fut], fut.result())
+                    if bar is not None:
+                        bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    parts = [r for r in results if r is not None]
+    lab = {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "actions", "phi_rad",
+                                                               "status")}
+    succ = np.concatenate([p["success"] for p in parts])
+    only = np.concatenate([p["learner_only"] for p in parts]).astype(bool)
+    fuel = np.concatenate([p["fuel_kg"] for p in parts])
+    sel = only if only.any() else np.ones(len(succ), dtype=bool)  # all mixed: over all
+    roll = {"rollout_success_rate": float(np.mean(succ[sel])),
+            "rollout_fuel_mean_kg": float(np.mean(fuel[sel])),
+            "rollout_policy_only_episodes": float(sel.sum())}
+    return lab, roll
 
 
 def _label_chunk(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
     """Label the chosen steps of some episodes with the closed-loop expert (worker process)."""
     import warnings
-
-    if job.get("pinpoint"):
-        return _label_chunk_pinpoint(job)
 
     from agents.evaluate import planar_state_si
     from agents.experts import PontryaginExpert
@@ -531,9 +600,7 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
                    progress: bool = True, min_speed_m_s: float = 3.0,
                    velocity_ref_m_s: float | None = None,
                    cache_dir: str | Path | None = None,
-                   tail_label_every: int = 1, plan_samples: bool = False,
-                   env_id: str | None = None,
-                   env_kwargs: dict[str, Any] | None = None) -> dict[str, np.ndarray]:
+                   tail_label_every: int = 1) -> dict[str, np.ndarray]:
     """Expert labels for the visited states of policy roll-outs.
 
     Every ``label_every``-th step of each episode and every step in its last ``dense_tail_s``
@@ -548,10 +615,8 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
     ``cache_dir``: each task's labels are written there (``part_<k>.npz``) as it finishes, and
     tasks already there are not labelled again (resume within an iteration).
 
-    Pinpoint scenarios are labelled by the re-planning expert (:func:`_label_chunk_pinpoint`);
-    ``tail_label_every`` thins the dense tail (a pinpoint re-plan near the gate costs ~2 s);
-    ``plan_samples`` (pinpoint, needs ``env_id``) adds every step of each re-plan's certified
-    optimal trajectory (:func:`_plan_samples`).
+    ``tail_label_every`` thins the dense tail. Soft landing only: a pinpoint iteration flies
+    and labels in one pass (:func:`pinpoint_dagger_rollouts`).
 
     Returns
     -------
@@ -561,7 +626,9 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
     from agents.dataset import _is_pinpoint
     from lunar_env import get_scenario
 
-    pinpoint = _is_pinpoint(get_scenario(scenario_name))
+    if _is_pinpoint(get_scenario(scenario_name)):
+        raise ValueError(f"scenario {scenario_name!r} is a pinpoint scenario: its DAgger data "
+                         "comes from agents.imitation.pinpoint_dagger_rollouts")
     jobs_eps = []
     for ep in episodes:
         t = ep["t_s"]
@@ -574,19 +641,14 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
             tail & (k_tail % max(int(tail_label_every), 1) == 0))
         if velocity_ref_m_s is not None:
             x = ep["state_nd"]
-            if pinpoint:  # Moon-fixed velocity = velocity relative to the target
-                speed = np.linalg.norm(x[:, 3:6], axis=1) * float(velocity_ref_m_s)
-            else:
-                speed = np.hypot(x[:, 1], x[:, 0] * x[:, 3]) * float(velocity_ref_m_s)
+            speed = np.hypot(x[:, 1], x[:, 0] * x[:, 3]) * float(velocity_ref_m_s)
             sel &= speed >= float(min_speed_m_s)
         jobs_eps.append({"obs": ep["obs"], "state_nd": ep["state_nd"], "t_s": t,
                          "label_idx": np.flatnonzero(sel)})
     n_workers = max(1, min(int(n_workers), len(jobs_eps)))
     # one task per few episodes: the pool balances the load and the bar moves as tasks finish
     per_task = max(1, min(4, len(jobs_eps) // (4 * n_workers) or 1))
-    jobs = [{"scenario": scenario_name, "dt_s": dt_s, "episodes": jobs_eps[i:i + per_task],
-             "pinpoint": pinpoint, "plan_samples": bool(plan_samples) and pinpoint,
-             "env_id": env_id, "env_kwargs": dict(env_kwargs or {})}
+    jobs = [{"scenario": scenario_name, "dt_s": dt_s, "episodes": jobs_eps[i:i + per_task]}
             for i in range(0, len(jobs_eps), per_task)]
     n_labels = sum(len(e["label_idx"]) for e in jobs_eps)
     bar = None
@@ -644,12 +706,10 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
             bar.close()
     parts = [r for rs in results if rs for r in rs]
     if not parts:
-        n_obs = episodes[0]["obs"].shape[1] if episodes else (9 if pinpoint else 5)
-        n_act = 2 if pinpoint else 1
+        n_obs = episodes[0]["obs"].shape[1] if episodes else 5
         return {"obs": np.zeros((0, n_obs), np.float32),
-                "actions": np.zeros((0, n_act), np.float32),
-                "phi_rad": np.zeros((0, 2) if pinpoint else 0),
-                "status": np.zeros(0, dtype="<U12")}
+                "actions": np.zeros((0, 1), np.float32),
+                "phi_rad": np.zeros(0), "status": np.zeros(0, dtype="<U12")}
     return {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "actions", "phi_rad",
                                                                 "status")}
 
@@ -690,7 +750,8 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
         if run.get("init"):
             init = load_policy_model(run["init"], device=run["device"])
             model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed, run["device"],
-                                hp.get("obs_features"))
+                                hp.get("obs_features"),
+                                True if hp.get("standardize_inputs") else None)
             try:
                 model.policy.load_state_dict(init.policy.state_dict())
             except RuntimeError as exc:
@@ -720,23 +781,36 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
         else:
             ep_seed = seed + int(dg.get("seed_offset", 100000)) + it * int(dg["n_episodes"])
             t0 = time.perf_counter()
-            eps = rollout_policy(model, run["env"], env_kwargs, int(dg["n_episodes"]), ep_seed,
-                                 hp.get("obs_features"))
-            roll = {"rollout_success_rate": float(np.mean([e["success"] for e in eps])),
-                    "rollout_fuel_mean_kg": float(np.mean([e["fuel_kg"] for e in eps])),
-                    "rollout_wall_s": time.perf_counter() - t0}
-            t0 = time.perf_counter()
+            from agents.dataset import _is_pinpoint
             from lunar_env import get_scenario
 
-            lab = label_episodes(eps, sc_name, dt_s, int(dg["label_every"]),
-                                 float(dg["dense_tail_s"]), int(dg.get("n_label_workers", 1)),
-                                 progress=not run.get("no_progress"),
-                                 min_speed_m_s=float(dg.get("min_label_speed_m_s", 3.0)),
-                                 velocity_ref_m_s=get_scenario(sc_name).scaling().velocity_m_s,
-                                 cache_dir=lbdir / f"iter_{it:03d}_parts",
-                                 tail_label_every=int(dg.get("tail_label_every", 1)),
-                                 plan_samples=bool(dg.get("plan_samples", False)),
-                                 env_id=run["env"], env_kwargs=env_kwargs)
+            if _is_pinpoint(get_scenario(sc_name)):
+                # the policy flies (mixed with the expert, β) and the feedback expert labels
+                # every visited state, in worker processes that load this iteration's policy
+                pol_file = lbdir / f"iter_{it:03d}_policy.zip"
+                if not pol_file.exists():
+                    save_model_atomic(model, pol_file)
+                lab, roll = pinpoint_dagger_rollouts(
+                    pol_file, run["env"], env_kwargs, int(dg["n_episodes"]), ep_seed,
+                    hp.get("obs_features"), float(dg.get("beta", 0.5)),
+                    int(dg.get("n_label_workers", 1)), cache_dir=lbdir / f"iter_{it:03d}_parts",
+                    progress=not run.get("no_progress"))
+                roll["rollout_wall_s"] = time.perf_counter() - t0
+                t0 = time.perf_counter()
+            else:
+                eps = rollout_policy(model, run["env"], env_kwargs, int(dg["n_episodes"]),
+                                     ep_seed, hp.get("obs_features"))
+                roll = {"rollout_success_rate": float(np.mean([e["success"] for e in eps])),
+                        "rollout_fuel_mean_kg": float(np.mean([e["fuel_kg"] for e in eps])),
+                        "rollout_wall_s": time.perf_counter() - t0}
+                t0 = time.perf_counter()
+                lab = label_episodes(eps, sc_name, dt_s, int(dg["label_every"]),
+                                     float(dg["dense_tail_s"]), int(dg.get("n_label_workers", 1)),
+                                     progress=not run.get("no_progress"),
+                                     min_speed_m_s=float(dg.get("min_label_speed_m_s", 3.0)),
+                                     velocity_ref_m_s=get_scenario(sc_name).scaling().velocity_m_s,
+                                     cache_dir=lbdir / f"iter_{it:03d}_parts",
+                                     tail_label_every=int(dg.get("tail_label_every", 1)))
             roll["label_wall_s"] = time.perf_counter() - t0
             tmp = lb_file.with_suffix(".tmp.npz")
             np.savez_compressed(tmp, **lab, **{k: np.array(v) for k, v in roll.items()})

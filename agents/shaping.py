@@ -41,6 +41,7 @@ from agents.features import feature_constants
 __all__ = ["PotentialShaping", "surface_speed_m_s"]
 
 POTENTIALS = ("surface_speed", "gate_speed_and_range")
+_PINPOINT_POTENTIALS = ("gate_speed_and_range",)
 
 
 def gate_speed_and_range(obs: np.ndarray, consts: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -95,9 +96,10 @@ class PotentialShaping(VecEnvWrapper):
             raise TypeError("PotentialShaping needs a LanderSB3VecEnv of LunarSoftLanding-v0")
         self.consts = feature_constants(native)
         pinpoint = bool(self.consts.get("pinpoint"))
-        if pinpoint != (potential == "gate_speed_and_range"):
-            raise ValueError(f"potential={potential!r} does not fit this env: use "
-                             f"{'gate_speed_and_range' if pinpoint else 'surface_speed'}")
+        if pinpoint != (potential in _PINPOINT_POTENTIALS):
+            allowed = _PINPOINT_POTENTIALS if pinpoint else ("surface_speed",)
+            raise ValueError(f"potential={potential!r} does not fit this env: use one of "
+                             f"{allowed}")
         self.surface_radius_m = float(getattr(native.scenario, "surface_radius_m", np.nan))
         self.gamma = float(gamma)
         self.potential = potential

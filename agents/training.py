@@ -347,6 +347,16 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         if norm_kw is not None:
             venv = VecNormalize(venv, **norm_kw)
         kwargs = resolve_algo_kwargs(hp, algo, n_actions=int(np.prod(venv.action_space.shape)))
+        if init is not None:
+            from agents.features import StandardizedInputs
+
+            fx = getattr(init.policy, "features_extractor", None)
+            if isinstance(fx, StandardizedInputs):
+                # a clone standardises its inputs itself: keep its input map
+                kwargs.setdefault("policy_kwargs", {})
+                kwargs["policy_kwargs"]["features_extractor_class"] = StandardizedInputs
+                kwargs["policy_kwargs"]["features_extractor_kwargs"] = {
+                    "mean": fx.mean.cpu().numpy().tolist(), "std": fx.std.cpu().numpy().tolist()}
         model = algo_class(algo)(hp.get("policy", "MlpPolicy"), venv, seed=seed,
                                   device=run.get("device", "cpu"), tensorboard_log=tb_dir,
                                   verbose=int(run.get("verbose", 0)), **kwargs)

@@ -108,4 +108,57 @@ def test_pinpoint_features_decode_and_shaping():
     with pytest.raises(ValueError, match="gate_speed_and_range"):
         PotentialShaping(venv, 0.99, potential="surface_speed")
     w = ObsFeatureWrapper(PotentialShaping(venv, 0.99, potential="gate_speed_and_range"), names)
-    assert w.reset().shape == (2, w.observation_space.shape[0]) == (2, 20)
+    assert w.reset().shape == (2, w.observation_space.shape[0]) == (2, 31)
+
+
+def test_reference_profile_and_stop_point_features():
+    """reference_profile is ~0 along the nominal optimal descent it is read from, and measures
+    a speed or altitude offset in its units; stop_point is the straight-line stop of a lander
+    whose velocity points along the track."""
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+    from agents.features import augment_observation, feature_constants
+    from optimizers.indirect.pinpoint_feedback import (
+        PinpointFeedback,
+        extremal_path,
+        solve_extremal,
+    )
+
+    env = gym.make("LunarPinpointLanding-v2").unwrapped
+    sc = env.scenario
+    consts = feature_constants(env)
+    fb = PinpointFeedback(sc)
+    x0 = sc.state_nd(scaling=sc.scaling())
+    sol = solve_extremal(fb.k, x0, fb.nominal_costates(), step_s=3.0)  # a grid of its own
+    t, path = extremal_path(fb.k, x0, sol.z, step_s=3.0)
+    obs = env.observation_from_state(path[:-1, :7], t[:-1])
+    ref = augment_observation(obs, consts, ["reference_profile"])[:, 9:]
+    # the profile is interpolated from a 0.5 s grid: ~0 (in units of 300 m, 10 m/s, 10 kg,
+    # 20 s) on the nominal path
+    assert np.abs(ref).max() < 0.02
+    # 10 m/s faster along the track at the same place: +1 in the v column
+    faster = path[len(t) // 2, :7].copy()
+    faster[3:6] *= 1.0 + 10.0 / (np.linalg.norm(faster[3:6]) * fb.k.velocity_m_s)
+    o2 = env.observation_from_state(faster[None], t[len(t) // 2:len(t) // 2 + 1])
+    r2 = augment_observation(o2, consts, ["reference_profile"])[0, 9:]
+    assert r2[3] == pytest.approx(1.0, abs=0.05)
+    # stop_point: at rest on the target the stop is the target
+    q_rest = np.zeros((1, 9), np.float32)
+    q_rest[0, 7] = 0.1
+    st = augment_observation(q_rest, consts, ["stop_point"])[0, 9:]
+    np.testing.assert_allclose(st, 0.0, atol=1e-6)
+    # moving horizontally along the track at v: stop after v²/(2k), k = sqrt(a² − g²)
+    o3 = q_rest.copy()
+    v0 = 100.0
+    o3[0, 5] = v0 / env._task.speed_scale_m_s
+    o3[0, 2] = 5000.0 / env._task.range_scale_m
+    c = env.physical_constants()
+    m = c["dry_mass_kg"] + 0.1 * c["prop_nominal_kg"]
+    a = c["thrust_n"] / m
+    g = c["mu_m3_s2"] / c["gate_radius_m"] ** 2
+    left = 5000.0 - v0 ** 2 / (2.0 * np.sqrt(a * a - g * g))
+    st3 = augment_observation(o3, consts, ["stop_point"])[0, 9:]
+    assert st3[1] == pytest.approx(np.log1p(left / 10.0) / 8.0, rel=1e-4)
+    assert st3[3] == pytest.approx(v0 / np.sqrt(a * a - g * g) / 100.0, rel=1e-4)
+

@@ -206,6 +206,22 @@ def test_optimal_pinpoint_landing_is_landable_and_ranked_best(env_id):
         return action_from_angles(al + np.radians(d_alpha_deg), be).astype(np.float32)
 
     r_opt = run(optimal)
+    # the optimal law in closed loop (the extremal re-solved from every state) lands, and its
+    # return is the best of all
+    from agents.experts import PinpointPontryaginExpert
+
+    expert = PinpointPontryaginExpert(get_scenario("peng2012"))
+    expert.match_gate(env)
+    env.reset(options={"nominal": True})
+    r_fb, info = 0.0, {}
+    while True:
+        a = expert.act(None, env)[0]
+        _, r, term, trunc, info = env.step(a)
+        r_fb += r
+        if term or trunc:
+            break
+    assert info["is_success"] and info["touchdown_speed_m_s"] < 0.5
+    assert r_fb > r_opt
     rng = np.random.default_rng(0)
     others = {"braking along the track": run(lambda k: action_from_angles(0.0, math.pi
                                                                           ).astype(np.float32)),
