@@ -64,6 +64,9 @@ DEFAULT_N_STATES = 1000
 DEFAULT_SEED = 2026
 DEFAULT_EXPERT_STATES = 20
 PINPOINT_EXPERT_STATES = 5
+#: cases flown by the Pontryagin feedback expert after training (~1 ms per decision and case;
+#: it lands every case at the optimum's fuel, so its row needs no more)
+PINPOINT_FEEDBACK_STATES = 200
 
 
 # ----------------------------------------------------------------------------- env helpers
@@ -383,13 +386,15 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
             open_loop: bool = True, n_expert_states: int = DEFAULT_EXPERT_STATES,
             trace_cases: int = 3, progress: bool = True,
             optimum_workers: int = 1, optimum_executor=None,
-            feedback_expert: bool = True) -> dict[str, Any]:
+            feedback_expert: bool = True, n_feedback_states: int | None = None
+            ) -> dict[str, Any]:
     """Run ``policies`` and the optimiser baselines over one case set; return the report dict.
 
     ``optimum_executor`` (:mod:`optimizers.common.executor`, e.g. Ray) runs the per-case optima
     (default: this process for the planar ones, ``optimum_workers`` processes for the pinpoint
     ones). ``feedback_expert`` (pinpoint): also fly the Pontryagin feedback expert
-    (:class:`agents.experts.PinpointPontryaginExpert`, the DAgger oracle) on every case.
+    (:class:`agents.experts.PinpointPontryaginExpert`, the DAgger oracle) on the first
+    ``n_feedback_states`` cases (None: every case).
 
     Keys: ``env_id``, ``seed``, ``n_states``, ``rows`` (one summary per policy, see the module
     docstring), ``optimum`` (per-case optimal fuel summary and solver wall time), ``results``
@@ -442,7 +447,9 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
     if not planar and feedback_expert:
         from agents.experts import PinpointPontryaginExpert
 
-        all_policies.append((PinpointPontryaginExpert(scenario), n_states))
+        n_fb = n_states if n_feedback_states is None else min(int(n_feedback_states), n_states)
+        if n_fb > 0:
+            all_policies.append((PinpointPontryaginExpert(scenario), n_fb))
     if not planar and n_expert_states and n_expert_states > 0:
         from agents.pinpoint_optimum import PinpointReplanningPolicy
 
@@ -625,7 +632,8 @@ def evaluate_run(run_dir: str | Path, n_states: int = DEFAULT_N_STATES, seed: in
             else DEFAULT_EXPERT_STATES
     report = compare(env_id, [policy], n_states=n_states, seed=seed,
                      env_kwargs=hp.get("env_kwargs"), open_loop=open_loop,
-                     n_expert_states=int(n_expert_states))
+                     n_expert_states=int(n_expert_states),
+                     n_feedback_states=PINPOINT_FEEDBACK_STATES)
     paths = write_report(report, out_dir or run_dir / "evaluation")
     print()
     print(f"## {env_id}: {n_states} dispersed initial states (seed {seed})")
@@ -669,6 +677,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=DEFAULT_SEED)
     p.add_argument("--expert-states", type=int, default=DEFAULT_EXPERT_STATES,
                    help="cases flown by the closed-loop re-planning expert (0: skip)")
+    p.add_argument("--feedback-states", type=int, default=None,
+                   help="pinpoint: cases flown by the Pontryagin feedback expert "
+                        "(default: all)")
     p.add_argument("--no-open-loop", action="store_true", help="skip the open-loop replay")
     p.add_argument("--trace-cases", type=int, default=3)
     p.add_argument("--out", default=None, help="output directory (default results/evaluate)")
@@ -720,6 +731,7 @@ def main(argv: list[str] | None = None) -> int:
         report = compare(env_id, policies, n_states=args.n_states, seed=args.seed,
                          env_kwargs=env_kwargs, open_loop=not args.no_open_loop,
                          n_expert_states=args.expert_states, trace_cases=args.trace_cases,
+                         n_feedback_states=args.feedback_states,
                          optimum_workers=args.optimum_workers, optimum_executor=executor)
     finally:
         if executor is not None:

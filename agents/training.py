@@ -281,6 +281,49 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
     return RolloutCheckpointCallback(), EpisodeInfoCallback()
 
 
+def actor_parameters(policy) -> list:
+    """The parameters of an SB3 actor-critic policy that only the actor uses (a features
+    extractor shared with the critic is left out)."""
+    parts = [policy.mlp_extractor.policy_net, policy.action_net]
+    if not getattr(policy, "share_features_extractor", True):
+        parts.append(policy.pi_features_extractor)
+    params = [p for m in parts for p in m.parameters()]
+    log_std = getattr(policy, "log_std", None)
+    return params + ([log_std] if log_std is not None else [])
+
+
+def critic_warmup_callback(warmup_steps: int):
+    """SB3 callback that holds the actor fixed for the first ``warmup_steps`` env steps.
+
+    Why: a policy cloned from an expert (``--init-from``) comes with an untrained value head;
+    the first PPO updates would follow advantages computed from it and move a policy that
+    already lands. With the actor's parameters frozen (no gradient, so Adam leaves them alone)
+    the PPO updates fit only the value function until ``warmup_steps``.
+    """
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class CriticWarmup(BaseCallback):
+        def _set(self, trainable: bool) -> None:
+            for p in actor_parameters(self.model.policy):
+                p.requires_grad_(trainable)
+                if not trainable:
+                    p.grad = None
+
+        def _on_training_start(self) -> None:
+            self._set(self.model.num_timesteps >= warmup_steps)
+
+        def _on_rollout_end(self) -> None:  # called just before each PPO update
+            self._set(self.model.num_timesteps >= warmup_steps)
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_training_end(self) -> None:
+            self._set(True)
+
+    return CriticWarmup()
+
+
 def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False,
           callbacks: list | None = None, on_resumed=None):
     """Train (or continue) one run; returns ``(model, run_dir)``.
@@ -406,10 +449,14 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         return previous + [session]
 
     ckpt_cb.on_save = record_timing
+    warmup_steps = int(hp.get("critic_warmup_steps") or 0)
+    if warmup_steps < 0:
+        raise ValueError(f"critic_warmup_steps={warmup_steps}: must be >= 0")
+    warmup = [critic_warmup_callback(warmup_steps)] if warmup_steps else []
     try:
         if remaining > 0:
             model.learn(total_timesteps=remaining,
-                        callback=[ckpt_cb, info_cb, *(callbacks or [])],
+                        callback=[ckpt_cb, info_cb, *warmup, *(callbacks or [])],
                         reset_num_timesteps=not resume, tb_log_name="run",
                         progress_bar=not run.get("no_progress"))
     except KeyboardInterrupt:

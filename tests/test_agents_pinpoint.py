@@ -162,3 +162,19 @@ def test_reference_profile_and_stop_point_features():
     assert st3[1] == pytest.approx(np.log1p(left / 10.0) / 8.0, rel=1e-4)
     assert st3[3] == pytest.approx(v0 / np.sqrt(a * a - g * g) / 100.0, rel=1e-4)
 
+
+
+def test_from_dagger_profile_loads_the_pinpoint_clone():
+    """``train.py --config from_dagger --init-from <DAgger run>`` needs the clone's network,
+    inputs and decision interval, and observations left raw (the clone standardises them)."""
+    from agents.hyperparams import default_hyperparams_path, load_hyperparams
+
+    env_id = "LunarPinpointLanding-v2"
+    ppo = load_hyperparams(default_hyperparams_path("ppo"), env_id, "from_dagger")
+    clone = load_hyperparams(default_hyperparams_path("ppo").with_name("imitation.yml"), env_id)
+    assert ppo["obs_features"] == clone["obs_features"]
+    assert ppo["policy_kwargs"]["net_arch"] == clone["policy_kwargs"]["net_arch"]
+    assert ppo["policy_kwargs"]["activation_fn"] == clone["policy_kwargs"]["activation_fn"]
+    assert ppo["normalize"]["norm_obs"] is False
+    assert ppo["env_kwargs"]["dt_s"] == 1.0 and ppo["curriculum"] is None
+    assert 0 < ppo["critic_warmup_steps"] < ppo["n_timesteps"]

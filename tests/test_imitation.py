@@ -24,6 +24,17 @@ def small_dataset(tmp_path_factory):
     return out, ds
 
 
+@pytest.fixture(scope="module")
+def bc_dir(small_dataset, tmp_path_factory):
+    """A one-epoch BC run on the small dataset (the initial policy of the fine-tuning tests)."""
+    path, _ = small_dataset
+    out = tmp_path_factory.mktemp("bc_run") / "bc"
+    assert im.main(["bc", "--quick", "--dataset", str(path), "--run-dir", str(out),
+                    "--seed", "0", "--no-progress", "--no-tensorboard",
+                    "--hyperparams", "bc.n_epochs=1"]) == 0
+    return out
+
+
 def test_dataset_samples_are_certified_and_in_env_spaces(small_dataset):
     import gymnasium as gym
 
@@ -143,7 +154,7 @@ def test_bc_dagger_end_to_end(small_dataset, tmp_path):
     assert np.isfinite(row["fuel_mean_kg"]) and row["us_per_decision"] > 0
 
 
-def test_train_init_from_bc_starts_from_cloned_weights(small_dataset, tmp_path):
+def test_train_init_from_bc_starts_from_cloned_weights(bc_dir, tmp_path):
     """``train.py --init-from <bc run>``: PPO starts from the cloned policy (learning rate 0 here,
     so the saved model must still hold exactly the cloned weights, except PPO's own log_std)."""
     import yaml
@@ -151,11 +162,6 @@ def test_train_init_from_bc_starts_from_cloned_weights(small_dataset, tmp_path):
 
     from agents import train
 
-    path, _ = small_dataset
-    bc_dir = tmp_path / "bc"
-    assert im.main(["bc", "--quick", "--dataset", str(path), "--run-dir", str(bc_dir),
-                    "--seed", "0", "--no-progress", "--no-tensorboard",
-                    "--hyperparams", "bc.n_epochs=1"]) == 0
     ft_dir = tmp_path / "ft"
     assert train.main(["--quick", "--init-from", str(bc_dir), "--run-dir", str(ft_dir),
                        "--seed", "0", "--no-eval", "--no-progress", "--no-tensorboard",
@@ -173,3 +179,30 @@ def test_train_init_from_bc_starts_from_cloned_weights(small_dataset, tmp_path):
 
         with open(vn, "rb") as fh:
             assert pickle.load(fh).norm_obs is False
+
+
+def test_critic_warmup_holds_the_cloned_actor_and_trains_the_value(bc_dir, tmp_path):
+    """``critic_warmup_steps``: while it lasts PPO's updates (learning rate > 0 here) leave the
+    cloned actor and log_std exactly as they were and fit only the value function."""
+    from stable_baselines3 import PPO
+
+    from agents import train
+
+    ft_dir = tmp_path / "ft"
+    assert train.main(["--quick", "--init-from", str(bc_dir), "--run-dir", str(ft_dir),
+                       "--seed", "0", "--no-eval", "--no-progress", "--no-tensorboard",
+                       "-n", "2048", "--verbose", "0", "--hyperparams", "curriculum=null",
+                       "env_kwargs={dt_s: 1.0}", "learning_rate=0.001",
+                       "critic_warmup_steps=100000"]) == 0
+    bc = PPO.load(bc_dir / "model.zip").policy.state_dict()
+    ft = PPO.load(ft_dir / "model.zip").policy.state_dict()
+    actor = [k for k in bc if k.startswith(("mlp_extractor.policy_net", "action_net"))]
+    critic = [k for k in bc if k.startswith(("mlp_extractor.value_net", "value_net"))]
+    assert actor and critic
+    for k in actor:
+        np.testing.assert_array_equal(ft[k].numpy(), bc[k].numpy(), err_msg=k)
+    assert any(not np.array_equal(ft[k].numpy(), bc[k].numpy()) for k in critic)
+    with pytest.raises(ValueError, match="critic_warmup_steps"):
+        train.main(["--quick", "--run-dir", str(tmp_path / "bad"), "--no-eval",
+                    "--no-progress", "--no-tensorboard", "-n", "64",
+                    "--hyperparams", "critic_warmup_steps=-1"])

@@ -97,6 +97,11 @@ def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, tmp_path):
         assert z["obs"].shape[1] == 9 and z["actions"].shape[1] == 2
         assert np.all(np.abs(z["actions"]) <= 1.0)
     assert (dg_dir / "model.zip").exists()
+    # the final policy is the iteration chosen on held-out validation cases
+    sel = yaml.safe_load((dg_dir / "selection.yml").read_text())
+    assert sel["chosen_iteration"] == 0 and sel["n_states"] == 2
+    assert sel["validation_seed"] == 50000 and len(sel["scores"]) == 1
+    assert 0.0 <= sel["scores"][0]["success_rate"] <= 1.0
 
 
 def test_dagger_rollouts_mix_expert_and_policy(pinpoint_dataset, tmp_path):
