@@ -103,6 +103,20 @@ def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, tmp_path):
     assert sel["validation_seed"] == 50000 and len(sel["scores"]) == 1
     assert 0.0 <= sel["scores"][0]["success_rate"] <= 1.0
 
+    # CI version of the fine-tuning stage: the from_dagger profile starts PPO from the clone,
+    # with the clone's input standardisation and raw observations
+    import agents.train as tr
+    from agents.features import StandardizedInputs
+
+    ft_dir = tmp_path / "ft"
+    assert tr.main(["--env", ENV_ID, "--config", "from_dagger", "--init-from", str(dg_dir),
+                    "--run-dir", str(ft_dir), "--seed", "0", "--no-eval", "--no-progress",
+                    "--no-tensorboard", "-n", "2048", "--hyperparams", "n_envs=2",
+                    "n_steps=512", "batch_size=512", "critic_warmup_steps=1024"]) == 0
+    ft = SB3Policy.from_path(ft_dir)
+    assert isinstance(ft.model.policy.features_extractor, StandardizedInputs)
+    assert ft.vecnormalize is None or ft.vecnormalize.norm_obs is False
+
 
 def test_dagger_rollouts_mix_expert_and_policy(pinpoint_dataset, tmp_path):
     """β = 0: every roll-out is the policy's alone; β = 1: every roll-out starts with the
