@@ -112,12 +112,7 @@ class OptimalStartCurriculum(VecEnvWrapper):
         be the innermost env: the wrapper sets the native batch's state).
     :param total_timesteps: training length; ``p`` reaches 0 at ``anneal_fraction`` of it.
     :param start_prob: ``p`` at the start of training.
-    :param anneal_fraction: fraction of training over which ``p`` decays linearly to
-        ``final_prob``.
-    :param final_prob: ``p`` from ``anneal_fraction`` to the end (default 0: dispersed starts
-        only). Why: on the pinpoint env half the PPO seeds collapsed as ``p`` reached 0
-        (training success 24 % -> 2 %, soft arrivals 8-68 km short); a floor keeps the end of
-        the descent in the data.
+    :param anneal_fraction: fraction of training over which ``p`` decays linearly to 0.
     :param n_trajectories: dispersed cases solved to build the pool of start states.
     :param min_time_fraction, max_time_fraction: start times are drawn uniformly in this
         fraction of each optimal flight time.
@@ -135,7 +130,7 @@ class OptimalStartCurriculum(VecEnvWrapper):
                  anneal_fraction: float = 0.7, n_trajectories: int = 256,
                  min_time_fraction: float = 0.0, max_time_fraction: float = 1.0,
                  seed: int = 0, pool_seed: int | None = None, pool_workers: int = 1,
-                 progress: bool = True, final_prob: float = 0.0) -> None:
+                 progress: bool = True) -> None:
         super().__init__(venv)
         native = getattr(venv, "native", None)
         if native is None or not hasattr(native, "scenario"):
@@ -143,8 +138,6 @@ class OptimalStartCurriculum(VecEnvWrapper):
                             "agents.vec_env.make_sb3_vec_env directly")
         if not (0.0 <= start_prob <= 1.0):
             raise ValueError(f"start_prob={start_prob!r} must be in [0, 1]")
-        if not (0.0 <= final_prob <= start_prob):
-            raise ValueError(f"final_prob={final_prob!r} must be in [0, start_prob={start_prob}]")
         if not (0.0 < anneal_fraction <= 1.0):
             raise ValueError(f"anneal_fraction={anneal_fraction!r} must be in (0, 1]")
         if not (0.0 <= min_time_fraction < max_time_fraction <= 1.0):
@@ -153,7 +146,6 @@ class OptimalStartCurriculum(VecEnvWrapper):
         self.native = native
         self.total_timesteps = int(total_timesteps)
         self.start_prob = float(start_prob)
-        self.final_prob = float(final_prob)
         self.anneal_fraction = float(anneal_fraction)
         self.min_time_fraction = float(min_time_fraction)
         self.max_time_fraction = float(max_time_fraction)
@@ -171,7 +163,7 @@ class OptimalStartCurriculum(VecEnvWrapper):
     def current_prob(self) -> float:
         """``p`` at the current training step."""
         frac = self.num_timesteps / max(self.total_timesteps * self.anneal_fraction, 1.0)
-        return self.final_prob + (self.start_prob - self.final_prob) * max(0.0, 1.0 - frac)
+        return self.start_prob * max(0.0, 1.0 - frac)
 
     def _restart(self, idx: np.ndarray, obs: np.ndarray) -> np.ndarray:
         """Move sub-envs ``idx`` (just reset) to pool states with probability ``p``."""

@@ -34,22 +34,7 @@ def test_curriculum_rejects_bad_arguments():
     venv = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0)
     with pytest.raises(ValueError, match="start_prob"):
         OptimalStartCurriculum(venv, 100, start_prob=1.5, n_trajectories=2, progress=False)
-    with pytest.raises(ValueError, match="final_prob"):
-        OptimalStartCurriculum(venv, 100, start_prob=0.5, final_prob=0.6, n_trajectories=2,
-                               progress=False)
     with pytest.raises(ValueError, match="min_time_fraction"):
         OptimalStartCurriculum(venv, 100, min_time_fraction=0.9, max_time_fraction=0.5,
                                n_trajectories=2, progress=False)
     venv.close()
-
-
-def test_curriculum_floor_keeps_a_share_of_optimal_starts():
-    venv = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0, dt_s=5.0)
-    cur = OptimalStartCurriculum(venv, total_timesteps=100, start_prob=0.9, final_prob=0.1,
-                                 anneal_fraction=0.5, n_trajectories=2, progress=False)
-    assert cur.current_prob == pytest.approx(0.9)
-    cur.num_timesteps = 25
-    assert cur.current_prob == pytest.approx(0.5)
-    cur.num_timesteps = 90
-    assert cur.current_prob == pytest.approx(0.1)
-    cur.close()
