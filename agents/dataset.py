@@ -317,7 +317,6 @@ def pinpoint_expert_flights(rows_nd: np.ndarray, env_id: str,
     """
     from agents.experts import PinpointPontryaginExpert
     from agents.rollout import fly
-    from lunar_env.envs.pinpoint_landing import action_from_angles
 
     env = _make_env(env_id, env_kwargs)
     sc = env.scenario
@@ -326,7 +325,6 @@ def pinpoint_expert_flights(rows_nd: np.ndarray, env_id: str,
     n = len(x0)
     expert = PinpointPontryaginExpert(sc)
     t0 = time.perf_counter()
-    keep = ("optimal", "nearest", "hold")
     rec: dict[str, list] = {k: [[] for _ in range(n)]
                             for k in ("observations", "actions", "t_s", "state_nd", "phi_rad",
                                       "status")}
@@ -334,17 +332,14 @@ def pinpoint_expert_flights(rows_nd: np.ndarray, env_id: str,
 
     def act(obs, venv, active):
         core = venv.unwrapped
-        expert.match_gate(core)
         states, times = core.state_nd, core.t_s
-        ang = expert.angles(states, times, float(core.dt_s), active)
-        lab = action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
-                                 sc.beta_bounds_rad).astype(np.float32)
+        ang, lab, is_label = expert.label(core, active)
         status = expert.last_status
         tgo = expert.feedback.last_tgo_s
         for i in np.flatnonzero(active):
             if times[i] == 0.0 and status[i] == "optimal":
                 first[i] = sc.vehicle.mass_flow_kg_s * tgo[i], tgo[i]
-            if status[i] in keep:
+            if is_label[i]:
                 for key, val in (("observations", obs[i]), ("actions", lab[i]),
                                  ("t_s", times[i]), ("state_nd", states[i]),
                                  ("phi_rad", ang[i]), ("status", status[i])):

@@ -26,7 +26,7 @@ from optimizers.indirect.planar import (
 from optimizers.transcription.collocation import solve_planar_min_time_collocation
 
 __all__ = ["PontryaginExpert", "STATUS_OPTIMAL", "STATUS_HOLD", "STATUS_FALLBACK",
-           "STATUS_CONSTRAINED", "PinpointPontryaginExpert"]
+           "STATUS_CONSTRAINED", "PinpointPontryaginExpert", "PINPOINT_LABEL_STATUSES"]
 
 N_STATE = len(dyn.PLANAR_STATE_NAMES)
 
@@ -188,14 +188,19 @@ class PontryaginExpert:
         return float(optimal_thrust_angle(sol.x0_nd, sol.costates0)), STATUS_OPTIMAL, sol.fuel_kg
 
 
+#: statuses of :class:`PinpointPontryaginExpert` decisions that are the extremal's law, hence
+#: labels; "stale" and "fallback" (no converged solve) are guesses and are not
+PINPOINT_LABEL_STATUSES = ("optimal", "nearest", "hold")
+
+
 class PinpointPontryaginExpert:
     """Closed-loop optimal feedback for ``LunarPinpointLanding-v*``: at every decision the
     minimum-time extremal from the lander's current state (:class:`optimizers.indirect.
     pinpoint_feedback.PinpointFeedback`, compiled Pontryagin shooting warm-started from the
     previous decision's extremal, ~1-15 ms), flown over the env step as its mean angle.
 
-    A policy for :func:`agents.evaluate.compare` (``reset`` / ``act``) and the DAgger oracle of
-    :mod:`agents.imitation` (:meth:`label`). Where the target is out of reach (a lander too
+    A policy for :func:`agents.evaluate.compare` (``reset`` / ``act``), and the labeller of the
+    pinpoint datasets and of DAgger (:meth:`label`). Where the target is out of reach (a lander too
     fast to stop at it), the extremal to the nearest reachable stop on the track is flown;
     the per-decision statuses are counted in :attr:`status_counts`.
 
@@ -229,16 +234,30 @@ class PinpointPontryaginExpert:
                 self.status_counts[st] = self.status_counts.get(st, 0) + 1
         return ang
 
-    def act(self, obs: np.ndarray, venv, active: np.ndarray | None = None) -> np.ndarray:
+    def label(self, venv, active: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The expert's decision at the current states of the (vector) env ``venv``.
+
+        Returns ``(angles, actions, is_label)``: (α, β) (rad) and the env actions (float32),
+        both (B, 2), and (B,) bool: the row is active (``active``, else :attr:`active`, else
+        all) and its status is one of :data:`PINPOINT_LABEL_STATUSES`.
+        """
         from lunar_env.envs.pinpoint_landing import action_from_angles
 
         core = getattr(venv, "unwrapped", venv)
         self.match_gate(core)
-        ang = self.angles(core.state_nd, core.t_s, float(core.dt_s),
-                          self.active if active is None else active)
+        rows = self.active if active is None else active
+        ang = self.angles(core.state_nd, core.t_s, float(core.dt_s), rows)
         sc = core.scenario
-        return action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
-                                  sc.beta_bounds_rad).astype(np.float32)
+        actions = action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
+                                     sc.beta_bounds_rad).astype(np.float32)
+        is_label = np.isin(np.asarray(self.last_status), PINPOINT_LABEL_STATUSES)
+        if rows is not None:
+            is_label &= np.asarray(rows, dtype=bool)
+        return ang, actions, is_label
+
+    def act(self, obs: np.ndarray, venv, active: np.ndarray | None = None) -> np.ndarray:
+        return self.label(venv, active)[1]
 
     def match_gate(self, env) -> None:
         """Keep the extremals above the gate where ``env`` counts it (its ``gate_range_m``:

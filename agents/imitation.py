@@ -56,6 +56,7 @@ import numpy as np
 import yaml
 
 from agents.runs import save_model_atomic, write_text_atomic
+from agents.training import actor_parameters
 
 __all__ = ["build_model", "mean_actions", "fit_policy", "train_bc", "train_dagger",
            "rollout_policy", "label_episodes", "load_policy_model", "main"]
@@ -133,12 +134,6 @@ def mean_actions(policy, obs):
     return policy.action_net(latent_pi)
 
 
-def _actor_parameters(policy) -> list:
-    return (list(policy.pi_features_extractor.parameters())
-            + list(policy.mlp_extractor.policy_net.parameters())
-            + list(policy.action_net.parameters()))
-
-
 def load_policy_model(path: str | Path, device: str = "cpu"):
     """Load a PPO zip (or a run directory holding ``model.zip``)."""
     from stable_baselines3 import PPO
@@ -187,7 +182,7 @@ def fit_policy(policy, obs: np.ndarray, act: np.ndarray, *, n_epochs: int, batch
 
     device = policy.device
     if optimizer is None:
-        optimizer = th.optim.Adam(_actor_parameters(policy), lr=learning_rate)
+        optimizer = th.optim.Adam(actor_parameters(policy, include_log_std=False), lr=learning_rate)
     n = len(obs)
     if n == 0:
         raise ValueError("no training samples")
@@ -340,7 +335,8 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
                                       what="BC checkpoint")
         epoch = int(_BC_CKPT.match(path.name).group(1))
         policy.load_state_dict(state["policy"])
-        optimizer = th.optim.Adam(_actor_parameters(policy), lr=float(bc["learning_rate"]))
+        optimizer = th.optim.Adam(actor_parameters(policy, include_log_std=False),
+                                  lr=float(bc["learning_rate"]))
         optimizer.load_state_dict(state["optimizer"])
         rng.bit_generator.state = state["rng"]
         start = epoch + 1
@@ -415,7 +411,6 @@ def _pinpoint_dagger_chunk(job: dict[str, Any]) -> dict[str, Any]:
     from agents.experts import PinpointPontryaginExpert
     from agents.rollout import fly
     from lunar_env import get_scenario
-    from lunar_env.envs.pinpoint_landing import action_from_angles
 
     th.set_num_threads(1)
     model = load_policy_model(job["model"])
@@ -424,19 +419,14 @@ def _pinpoint_dagger_chunk(job: dict[str, Any]) -> dict[str, Any]:
     expert = PinpointPontryaginExpert(sc)
     n = int(job["n_episodes"])
     switch = np.asarray(job["switch_s"], dtype=np.float64)
-    keep = ("optimal", "nearest", "hold")
     rec: dict[str, list] = {k: [] for k in ("obs", "actions", "phi_rad", "status")}
 
     def act(obs, venv, active):
         core = venv.unwrapped
-        expert.match_gate(core)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            ang = expert.angles(core.state_nd, core.t_s, float(core.dt_s), active)
-        lab = action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
-                                 sc.beta_bounds_rad).astype(np.float32)
+            ang, lab, m = expert.label(core, active)
         st = np.asarray(expert.last_status)
-        m = active & np.isin(st, keep)
         rec["obs"].append(np.asarray(obs)[m])
         rec["actions"].append(lab[m])
         rec["phi_rad"].append(ang[m])
@@ -469,7 +459,8 @@ def pinpoint_dagger_rollouts(model_path: str | Path, env_id: str,
     phase of the descent, not only from the start. The success rate reported is that of the
     policy-only episodes.
 
-    ``cache_dir``: each chunk's labels are kept there (``part_<k>.npz``) and reused on resume.
+    ``cache_dir``: each chunk's labels are kept there (an :class:`optimizers.common.executor.
+    ResultStore`) and reused on resume.
     Labels whose solve did not converge (status "stale"/"fallback") are not returned.
     """
     rng = np.random.default_rng([int(seed), 7])
@@ -486,58 +477,25 @@ def pinpoint_dagger_rollouts(model_path: str | Path, env_id: str,
              "obs_features": obs_features, "scenario": scenario, "seed": int(seed) + int(lo),
              "n_episodes": int(hi - lo), "switch_s": switch[lo:hi].tolist()}
             for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
-    cache = Path(cache_dir) if cache_dir is not None else None
-    results: list[dict[str, Any] | None] = [None] * len(jobs)
+    from optimizers.common.executor import (
+        LocalExecutor,
+        ResultStore,
+        Task,
+        TaskKey,
+        run_tasks,
+    )
 
-    def _part(i: int) -> Path:
-        return cache / f"part_{i:04d}.npz"
-
-    todo = []
-    for i in range(len(jobs)):
-        if cache is not None and _part(i).exists():
-            try:
-                with np.load(_part(i)) as z:
-                    results[i] = {k: z[k] for k in z.files}
-                continue
-            except Exception as exc:  # a damaged part: fly those episodes again
-                print(f"DAgger part {_part(i)} is damaged ({type(exc).__name__}); flying again")
-        todo.append(i)
-
-    def _keep(i: int, res: dict[str, Any]) -> None:
-        results[i] = res
-        if cache is not None:
-            cache.mkdir(parents=True, exist_ok=True)
-            tmp = _part(i).with_suffix(".tmp.npz")
-            np.savez(tmp, **res)
-            os.replace(tmp, _part(i))
-
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=len(jobs), desc=f"DAgger roll-outs + expert labels ({n_workers} proc)",
-                   unit="chunk")
-    try:
-        if n_workers == 1:
-            for i in todo:
-                _keep(i, _pinpoint_dagger_chunk(jobs[i]))
-                if bar is not None:
-                    bar.update(1)
-        else:
-            from concurrent.futures import as_completed
-
-            from agents.runs import process_pool
-
-            with process_pool(n_workers) as ex:
-                futs = {ex.submit(_pinpoint_dagger_chunk, jobs[i]): i for i in todo}
-                for fut in as_completed(futs):
-                    _keep(futs[fut], fut.result())
-                    if bar is not None:
-                        bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
-    parts = [r for r in results if r is not None]
+    # each chunk's result is stored as it arrives and read back on resume
+    store = None if cache_dir is None else ResultStore(
+        cache_dir, identity={"model": str(model_path), "env_id": env_id, "seed": int(seed),
+                             "n_episodes": int(n_episodes), "beta": float(beta)},
+        fmt="pickle")
+    tasks = [Task(TaskKey(f"dagger-{env_id}", int(seed), k), _pinpoint_dagger_chunk, (job,))
+             for k, job in enumerate(jobs)]
+    with LocalExecutor(n_workers if n_workers > 1 else 0) as ex:
+        results, _ = run_tasks(tasks, ex, store, progress=(
+            f"DAgger roll-outs + expert labels ({n_workers} proc)" if progress else False))
+    parts = [results[t.key] for t in tasks]
     lab = {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "actions", "phi_rad",
                                                                "status")}
     succ = np.concatenate([p["success"] for p in parts])
@@ -1102,4 +1060,8 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     os.environ.setdefault("PYTHONUNBUFFERED", "1")
-    raise SystemExit(main())
+    # run the imported module's main: the DAgger roll-out tasks must be importable as
+    # agents.imitation._pinpoint_dagger_chunk by spawned workers, not as __main__'s
+    from agents.imitation import main as _main
+
+    raise SystemExit(_main())

@@ -281,14 +281,15 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
     return RolloutCheckpointCallback(), EpisodeInfoCallback()
 
 
-def actor_parameters(policy) -> list:
+def actor_parameters(policy, include_log_std: bool = True) -> list:
     """The parameters of an SB3 actor-critic policy that only the actor uses (a features
-    extractor shared with the critic is left out)."""
+    extractor shared with the critic is left out); ``include_log_std`` False leaves out the
+    exploration noise too (behaviour cloning regresses the mean action only)."""
     parts = [policy.mlp_extractor.policy_net, policy.action_net]
     if not getattr(policy, "share_features_extractor", True):
         parts.append(policy.pi_features_extractor)
     params = [p for m in parts for p in m.parameters()]
-    log_std = getattr(policy, "log_std", None)
+    log_std = getattr(policy, "log_std", None) if include_log_std else None
     return params + ([log_std] if log_std is not None else [])
 
 

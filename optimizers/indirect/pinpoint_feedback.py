@@ -29,8 +29,9 @@ constraints inactive; H = λ·f, Mayer cost tf):
   and the free final time only fix the costate scale (H(tf) < 0 holds whenever F/m exceeds
   gravity), so the scale is fixed by |λ_v(t)| = 1 instead.
 
-Unknowns z = (λ_r(t), λ_v(t), tgo) (normalised), residual (r(tf) − target, V(tf), |λ_v|² − 1),
-damped Newton with a finite-difference Jacobian; RK4 with ``n_steps`` uniform steps over tgo.
+Unknowns z = (λ_r(t), λ_v(t), tgo, σ) (normalised; σ the terminal point along the track, see
+:func:`_residual`), residual (r(tf) − r_f(σ), V(tf), |λ_v|² − 1, σ's condition), damped Newton
+with a finite-difference Jacobian; RK4 with uniform steps over tgo.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ import numba
 import numpy as np
 
 from lunar_env import dynamics as dyn
+from lunar_env.validation import require_finite, require_finite_positive
 
 __all__ = ["FeedbackConstants", "feedback_constants", "solve_extremal", "extremal_path",
            "optimal_angles", "ExtremalSolution", "PinpointFeedback", "STATUS_OPTIMAL",
@@ -280,9 +282,7 @@ def _newton(x0, z0, c, step_nd, min_steps, tol, max_iter, free_along, sigma_targ
 class ExtremalSolution:
     """One solve: ``z`` = (λ_r, λ_v, tgo, σ) normalised (σ: terminal point along the track
     beyond the target, rad of arc; 0 = the target); ``converged``; ``residual`` ∞-norm
-    (normalised); ``iterations``; ``tgo_s``; ``beyond_m`` = σ·r_gate (m); ``multiplier`` =
-    λ_r(tf)·t̂, the along-track terminal costate (its sign says on which side of the target
-    the unconstrained stop would be)."""
+    (normalised); ``iterations``; ``tgo_s``; ``beyond_m`` = σ·r_gate (m)."""
 
     z: np.ndarray
     converged: bool
@@ -290,7 +290,6 @@ class ExtremalSolution:
     iterations: int
     tgo_s: float
     beyond_m: float
-    multiplier: float
 
 
 def solve_extremal(consts: FeedbackConstants, state_nd: np.ndarray, guess: np.ndarray, *,
@@ -319,16 +318,8 @@ def solve_extremal(consts: FeedbackConstants, state_nd: np.ndarray, guess: np.nd
     z, nrm, it = _newton(x0, g, consts.c, step_s / consts.time_s, int(min_steps), float(tol),
                          int(max_iter), bool(free_along), float(sigma_target))
     ok = bool(np.isfinite(nrm) and nrm <= 100 * tol and z[6] > 0)
-    mult = math.nan
-    if ok:
-        y0 = np.r_[x0, z[:6]]
-        n = max(int(min_steps), int(math.ceil(z[6] * consts.time_s / step_s)))
-        yf = _integrate(y0, float(z[6]), n, consts.c, np.empty((0, 13)))
-        c = consts.c
-        t_hat = -math.sin(z[7]) * c[_UX:_UX + 3] + math.cos(z[7]) * c[_AX:_AX + 3]
-        mult = float(yf[7:10] @ t_hat)
     return ExtremalSolution(z, ok, float(nrm), int(it), float(z[6] * consts.time_s),
-                            float(z[7] * consts.c[_RG] * consts.length_m), mult)
+                            float(z[7] * consts.c[_RG] * consts.length_m))
 
 
 def extremal_path(consts: FeedbackConstants, state_nd: np.ndarray, z: np.ndarray, *,
@@ -408,21 +399,17 @@ class PinpointFeedback:
 
     def __init__(self, scenario, *, step_s: float = 4.0, hold_s: float = 3.0,
                  max_iter: int = 25, gate_floor_range_m: float | None = 10_000.0) -> None:
-        for name, v in (("step_s", step_s), ("hold_s", hold_s)):
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} = {v!r} must be finite and >= 0")
-        if not step_s > 0:
-            raise ValueError(f"step_s = {step_s!r} must be > 0")
+        require_finite("hold_s", hold_s)
+        if not hold_s >= 0:
+            raise ValueError(f"hold_s = {hold_s!r} must be >= 0")
         self.scenario = scenario
         self.k = feedback_constants(scenario)
-        self.step_s = float(step_s)
+        self.step_s = require_finite_positive("step_s", step_s)
         self.hold_s = float(hold_s)
         self.max_iter = int(max_iter)
-        if gate_floor_range_m is not None and not (math.isfinite(gate_floor_range_m)
-                                                   and gate_floor_range_m > 0):
-            raise ValueError(f"gate_floor_range_m = {gate_floor_range_m!r} must be finite and "
-                             "> 0 (or None: the whole path)")
-        self.gate_floor_range_m = gate_floor_range_m
+        self.gate_floor_range_m = (None if gate_floor_range_m is None else
+                                   require_finite_positive("gate_floor_range_m",
+                                                           gate_floor_range_m))
         self.n_raised = 0
         self._memory: dict[int, tuple] = {}  # row -> (y (13,), t_s, tgo_s, σ)
         self._nominal: np.ndarray | None = None
@@ -550,8 +537,7 @@ class PinpointFeedback:
         if x.shape[1] != 7 or not np.all(np.isfinite(x)) or not np.all(np.isfinite(t)):
             raise ValueError(f"states_nd {x.shape} must be finite (B, 7) normalised pinpoint "
                              "states with finite times")
-        if not (math.isfinite(dt_s) and dt_s > 0):
-            raise ValueError(f"dt_s = {dt_s!r} must be finite and > 0")
+        require_finite_positive("dt_s", dt_s)
         act = np.ones(len(x), dtype=bool) if active is None else np.asarray(active, bool)
         out = np.empty((len(x), 2))
         status = []
