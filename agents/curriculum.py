@@ -123,14 +123,22 @@ class OptimalStartCurriculum(VecEnvWrapper):
         disk cache) instead of solving 256 new cases (the draws of start points still follow
         ``seed``).
     :param pool_workers: kept for compatibility (the pool is solved in this process).
+    :param start_noise: ``None`` or ``{position_m, velocity_m_s}`` (pinpoint env): Gaussian
+        perturbations (σ per Cartesian component) added to every curriculum start, so that
+        the policy also starts *off* the optimal trajectories and learns to recover (the
+        states its own errors lead to), as DART (Laskey et al. 2017) does for imitation.
     :param progress: progress bar while solving.
+
+    Every finished episode's ``info`` gets ``start_fraction``: the fraction of the optimal
+    flight time it started at, NaN for a start from the dispersion (the evaluation's
+    distribution), so that a log can tell the two apart.
     """
 
     def __init__(self, venv, total_timesteps: int, start_prob: float = 0.8,
                  anneal_fraction: float = 0.7, n_trajectories: int = 256,
                  min_time_fraction: float = 0.0, max_time_fraction: float = 1.0,
                  seed: int = 0, pool_seed: int | None = None, pool_workers: int = 1,
-                 progress: bool = True) -> None:
+                 start_noise: dict[str, float] | None = None, progress: bool = True) -> None:
         super().__init__(venv)
         native = getattr(venv, "native", None)
         if native is None or not hasattr(native, "scenario"):
@@ -155,9 +163,11 @@ class OptimalStartCurriculum(VecEnvWrapper):
             native.scenario, n_trajectories, seed if pool_seed is None else int(pool_seed),
             progress=progress, workers=int(pool_workers))
         self.pool_build_s = time.perf_counter() - t0
+        self.start_noise_nd = _check_start_noise(start_noise, native.scenario)
         self.num_timesteps = 0
         self.n_curriculum_starts = 0
         self.n_starts = 0
+        self.start_fraction = np.full(self.num_envs, np.nan)
 
     @property
     def current_prob(self) -> float:
@@ -168,6 +178,7 @@ class OptimalStartCurriculum(VecEnvWrapper):
     def _restart(self, idx: np.ndarray, obs: np.ndarray) -> np.ndarray:
         """Move sub-envs ``idx`` (just reset) to pool states with probability ``p``."""
         self.n_starts += len(idx)
+        self.start_fraction[idx] = np.nan
         p = self.current_prob
         if p <= 0.0 or len(idx) == 0:
             return obs
@@ -179,7 +190,13 @@ class OptimalStartCurriculum(VecEnvWrapper):
         lo = int(np.floor(self.min_time_fraction * n_pts))
         hi = max(int(np.ceil(self.max_time_fraction * n_pts)), lo + 1)
         j = self.rng.integers(lo, hi, len(pick))
+        self.start_fraction[pick] = j / n_pts
         y = self.pool_states[k, j]
+        if self.start_noise_nd is not None:
+            sig_r, sig_v = self.start_noise_nd
+            y = y.copy()
+            y[:, 0:3] += self.rng.normal(0.0, sig_r, (len(pick), 3))
+            y[:, 3:6] += self.rng.normal(0.0, sig_v, (len(pick), 3))
         t_s = self.pool_times[k, j]
         self.native.set_states(pick, y, t_s)
         obs = np.array(obs, copy=True)
@@ -195,9 +212,33 @@ class OptimalStartCurriculum(VecEnvWrapper):
         obs, rew, done, infos = self.venv.step_wait()
         self.num_timesteps += self.num_envs
         if done.any():
-            obs = self._restart(np.flatnonzero(done), obs)
+            idx = np.flatnonzero(done)
+            for i in idx:
+                infos[i]["start_fraction"] = float(self.start_fraction[i])
+            obs = self._restart(idx, obs)
         return obs, rew, done, infos
 
     def curriculum_info(self) -> dict[str, Any]:
         return {"p": self.current_prob, "curriculum_starts": self.n_curriculum_starts,
                 "starts": self.n_starts}
+
+
+def _check_start_noise(noise: dict[str, float] | None, scenario
+                       ) -> tuple[float, float] | None:
+    """(σ position, σ velocity) in the scenario's normalised units, or None."""
+    if not noise:
+        return None
+    from lunar_env.scenarios import PinpointScenario
+
+    if not isinstance(scenario, PinpointScenario):
+        raise ValueError("start_noise is available for the pinpoint env only")
+    allowed = {"position_m", "velocity_m_s"}
+    unknown = set(noise) - allowed
+    if unknown:
+        raise ValueError(f"start_noise keys {sorted(unknown)} unknown; allowed: {sorted(allowed)}")
+    pos, vel = float(noise.get("position_m", 0.0)), float(noise.get("velocity_m_s", 0.0))
+    for name, v in (("position_m", pos), ("velocity_m_s", vel)):
+        if not (np.isfinite(v) and v >= 0.0):
+            raise ValueError(f"start_noise {name}={v!r} must be finite and >= 0")
+    s = scenario.scaling()
+    return pos / s.length_m, vel / s.velocity_m_s

@@ -144,6 +144,27 @@ def reference_profile(consts: dict) -> dict[str, np.ndarray]:
     return _PROFILES[key]
 
 
+def straight_line_stop(q: dict[str, np.ndarray], consts: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Where a straight-line stop of a pinpoint lander would end.
+
+    Thrust plus gravity antiparallel to the velocity: net deceleration k from |k v̂ − g| = F/m
+    (g radial, down), stop after τ = v/k at r + v τ/2. ``q``: decoded observations
+    (``observation_quantities``). Returns the offset target − stop point (radial, along,
+    cross; m), shape (B, 3), and τ (s), shape (B,).
+    """
+    d = np.stack([q["target_radial_m"], q["target_along_m"], q["target_cross_m"]], axis=1)
+    vel = np.stack([q["u_m_s"], q["v_m_s"], q["w_m_s"]], axis=1)
+    speed = np.sqrt(np.sum(vel * vel, axis=1))
+    m = consts["dry_mass_kg"] + np.maximum(q["propellant_kg"], 0.0)
+    a_thrust = consts["thrust_n"] / m
+    r = consts["gate_radius_m"] + q["altitude_m"]
+    g = consts["mu_m3_s2"] / (r * r)
+    vhat_r = vel[:, 0] / np.maximum(speed, 1e-9)
+    k = g * vhat_r + np.sqrt(np.maximum(a_thrust ** 2 - g * g * (1.0 - vhat_r ** 2), 1e-9))
+    tau = speed / np.maximum(k, 1e-9)
+    return d - vel * (0.5 * tau)[:, None], tau
+
+
 def augment_observation(obs: np.ndarray, consts: dict[str, float],
                         names: Sequence[str]) -> np.ndarray:
     """Append the features ``names`` to env observations.
@@ -267,16 +288,7 @@ def _augment_pinpoint(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np
                 ref = np.interp(q["target_along_m"], prof["along_m"], prof[key])
                 cols.append(np.clip((q[key] - ref) / scale, -20.0, 20.0))
         elif name == "stop_point":
-            # straight-line braking: thrust + gravity antiparallel to the velocity, net
-            # deceleration k from |k v̂ − g| = F/m (g radial, down), stop after τ = v/k at
-            # r + v τ/2; the offset target − stop point in the orbital frame
-            r = consts["gate_radius_m"] + q["altitude_m"]
-            g = consts["mu_m3_s2"] / (r * r)
-            vhat_r = vel[:, 0] / np.maximum(speed, 1e-9)
-            k = g * vhat_r + np.sqrt(np.maximum(a_thrust ** 2 - g * g * (1.0 - vhat_r ** 2),
-                                                1e-9))
-            tau = speed / np.maximum(k, 1e-9)
-            off = d - vel * (0.5 * tau)[:, None]
+            off, tau = straight_line_stop(q, consts)
             cols += [np.sign(off[:, j]) * np.log1p(np.abs(off[:, j]) / 10.0) / 8.0
                      for j in range(3)]
             cols.append(np.clip(tau / 100.0, 0.0, 10.0))

@@ -849,36 +849,26 @@ def select_iteration(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | No
     iteration to the next may trade a few cases (measured on the pinpoint env: 99.5 % after
     iteration 6, 99.0 % after 7, on the evaluation's 200 states). Each checkpoint flies cases
     ``seed .. seed + n_states - 1`` (default seed 50000: disjoint from the dataset's, the
-    roll-outs' and the evaluation's cases); ties go to the later iteration. The scores are
-    written to ``selection.yml``; returns the chosen model.
+    roll-outs' and the evaluation's cases; :mod:`agents.selection`); ties go to the later
+    iteration. The scores are written to ``selection.yml``; returns the chosen model.
     """
     from stable_baselines3 import PPO
 
-    from agents.evaluate import SB3Policy, rollout
+    from agents.selection import best_of, score_candidates
 
     ckdir = run_dir / "checkpoints"
     done = sorted((int(m.group(1)), f) for f in ckdir.iterdir() if (m := _DG_CKPT.match(f.name)))
     if not done:
         raise FileNotFoundError(f"no DAgger checkpoint in {ckdir}")
-    scores = []
-    for it, f in done:
-        model = PPO.load(f, device=device)
-        res = rollout(env_id, SB3Policy(model, None, name=f"iter {it}",
-                                        obs_features=obs_features),
-                      n_states, seed, env_kwargs, trace_cases=0)
-        ok = res.is_success
-        scores.append({"iteration": it, "success_rate": float(ok.mean()),
-                       "fuel_mean_kg": float(np.mean(res.fuel_used_kg[ok])) if ok.any()
-                       else float("nan")})
-        print(f"DAgger selection: iteration {it} lands {100 * ok.mean():.1f} % of {n_states} "
-              f"validation states", flush=True)
-    best = max(scores, key=lambda r: (r["success_rate"], r["iteration"]))
+    scores = score_candidates([(it, f, None) for it, f in done], env_id, env_kwargs,
+                              obs_features, n_states, seed, device, label="DAgger iteration")
+    best = best_of(scores)
     write_text_atomic(run_dir / "selection.yml", yaml.safe_dump(
-        {"validation_seed": seed, "n_states": n_states, "chosen_iteration": best["iteration"],
-         "scores": scores}, sort_keys=False))
-    print(f"DAgger selection: iteration {best['iteration']} "
-          f"({100 * best['success_rate']:.1f} %)")
-    return PPO.load(dict(done)[best["iteration"]], device=device)
+        {"validation_seed": seed, "n_states": n_states, "chosen_iteration": best["key"],
+         "scores": [{"iteration": r["key"], "success_rate": r["success_rate"],
+                     "fuel_mean_kg": r["fuel_mean_kg"]} for r in scores]}, sort_keys=False))
+    print(f"DAgger selection: iteration {best['key']} ({100 * best['success_rate']:.1f} %)")
+    return PPO.load(dict(done)[best["key"]], device=device)
 
 
 # ----------------------------------------------------------------------------- CLI

@@ -38,3 +38,50 @@ def test_curriculum_rejects_bad_arguments():
         OptimalStartCurriculum(venv, 100, min_time_fraction=0.9, max_time_fraction=0.5,
                                n_trajectories=2, progress=False)
     venv.close()
+
+
+def test_start_noise_perturbs_pinpoint_starts_off_the_optimal_trajectories():
+    venv = make_sb3_vec_env("LunarPinpointLanding-v2", 64, seed=0, dt_s=2.0)
+    cur = OptimalStartCurriculum(venv, total_timesteps=10_000, start_prob=1.0,
+                                 n_trajectories=2, seed=0, progress=False,
+                                 start_noise={"position_m": 100.0, "velocity_m_s": 1.0})
+    cur.reset()
+    s = venv.native.scenario.scaling()
+    y = np.asarray(venv.native.state_nd)
+    t = np.asarray(venv.native.t_s)
+    # the nearest pool point at the same clock: the perturbation's size in metres and m/s
+    dp, dv = [], []
+    for i in range(64):
+        k, j = np.argwhere(np.isclose(cur.pool_times, t[i], rtol=0, atol=1e-9))[0]
+        d = y[i] - cur.pool_states[k, j]
+        dp.append(np.linalg.norm(d[:3]) * s.length_m)
+        dv.append(np.linalg.norm(d[3:6]) * s.velocity_m_s)
+        assert d[6] == 0.0  # the mass is not perturbed
+    # |N(0, σ² I₃)| has mean σ·2√(2/π) ≈ 1.6 σ
+    assert 100.0 < np.mean(dp) < 220.0 and 1.0 < np.mean(dv) < 2.2
+    cur.close()
+    soft = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0)
+    with pytest.raises(ValueError, match="pinpoint"):
+        OptimalStartCurriculum(soft, 100, n_trajectories=2, progress=False,
+                               start_noise={"position_m": 1.0})
+    soft.close()
+
+
+def test_noise_anneal_sets_the_exploration_noise_on_a_line_to_the_end():
+    from stable_baselines3 import PPO
+
+    from agents.training import noise_anneal_callback
+
+    venv = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0)
+    model = PPO("MlpPolicy", venv, n_steps=8, batch_size=16, seed=0, device="cpu",
+                policy_kwargs={"log_std_init": -2.0})
+    cb = noise_anneal_callback(1000, start_fraction=0.5, final_log_std=-4.0)
+    cb.init_callback(model)
+    log_std = model.policy.log_std
+    for t, want in ((100, -2.0), (500, -2.0), (750, -3.0), (1000, -4.0)):
+        model.num_timesteps = t
+        cb.on_rollout_start()
+        np.testing.assert_allclose(log_std.detach().numpy(), want, atol=1e-6)
+    with pytest.raises(ValueError, match="start_fraction"):
+        noise_anneal_callback(1000, start_fraction=1.0, final_log_std=-4.0)
+    venv.close()

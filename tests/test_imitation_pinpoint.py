@@ -165,6 +165,13 @@ def test_pinpoint_ppo_quick_with_curriculum_features_and_shaping(tmp_path):
                     "--eval-expert-states", "0"]) == 0
     hp = yaml.safe_load((run_dir / "config.yml").read_text())
     assert hp["curriculum"] and hp["obs_features"] and hp["reward_shaping"]
+    assert hp["curriculum"]["start_noise"]["position_m"] > 0
+    # the final policy is the best of the last checkpoints on validation cases, copied whole
+    sel = yaml.safe_load((run_dir / "selection.yml").read_text())
+    assert sel["n_states"] == 2 and sel["validation_seed"] == 50000
+    assert len(sel["scores"]) == 2 and sel["chosen_steps"] in [r["steps"] for r in sel["scores"]]
+    chosen = run_dir / "checkpoints" / f"rl_model_{sel['chosen_steps']}_steps.zip"
+    assert (run_dir / "model.zip").read_bytes() == chosen.read_bytes()
     rep = json.loads((run_dir / "evaluation" / "comparison.json").read_text())
     assert rep["optimum"]["converged"] == 2 and 270.0 < rep["optimum"]["fuel_mean_kg"] < 295.0
     rows = {r["policy"]: r for r in rep["rows"]}

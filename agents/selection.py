@@ -1,0 +1,90 @@
+"""Choose a run's final policy among its checkpoints by landings on held-out states.
+
+Why (issue 16): the policy of one PPO update (or DAgger iteration) to the next trades cases —
+the pinpoint PPO's training success moved 93.0 → 89.9 % over its last two checkpoints, DAgger's
+iterates 95 / 100 / 98 % — so the last iterate is a draw from that spread. Ross et al. (2011)
+bound the *best* DAgger iterate, and SB3's ``EvalCallback(best_model_save_path=...)`` keeps the
+best PPO checkpoint by evaluation return; here the criterion is the env's own verdict (landings)
+on validation cases ``seed .. seed + n_states - 1`` (default 50000: disjoint from the training
+draws, the imitation datasets' cases and the evaluation's 2026..). Ties go to the later
+candidate. Deterministic actions, as in the evaluation.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from agents.runs import write_text_atomic
+
+__all__ = ["score_candidates", "select_checkpoint"]
+
+#: validation case set (see module docstring)
+VALIDATION_SEED = 50000
+
+
+def score_candidates(candidates: list[tuple[int, Path, Path | None]], env_id: str,
+                     env_kwargs: dict[str, Any] | None, obs_features: list[str] | None,
+                     n_states: int, seed: int = VALIDATION_SEED, device: str = "cpu",
+                     label: str = "checkpoint") -> list[dict[str, Any]]:
+    """Landings of each candidate ``(key, model .zip, VecNormalize .pkl or None)`` on the
+    validation cases; one dict per candidate (``key``, ``success_rate``, ``fuel_mean_kg`` of
+    its landings), in the candidates' order. Prints one line per candidate."""
+    from stable_baselines3 import PPO
+
+    from agents.evaluate import SB3Policy, rollout
+
+    if int(n_states) < 1:
+        raise ValueError(f"n_states={n_states!r} must be >= 1")
+    scores = []
+    for key, model_path, vn_path in candidates:
+        model = PPO.load(model_path, device=device)
+        res = rollout(env_id, SB3Policy(model, vn_path, name=f"{label} {key}",
+                                        obs_features=obs_features),
+                      int(n_states), int(seed), env_kwargs, trace_cases=0)
+        ok = res.is_success
+        scores.append({"key": int(key), "success_rate": float(ok.mean()),
+                       "fuel_mean_kg": float(np.mean(res.fuel_used_kg[ok])) if ok.any()
+                       else float("nan")})
+        print(f"selection: {label} {key} lands {100 * ok.mean():.1f} % of {n_states} "
+              f"validation states", flush=True)
+    return scores
+
+
+def best_of(scores: list[dict[str, Any]]) -> dict[str, Any]:
+    """The candidate with the most landings (the later one on a tie)."""
+    return max(scores, key=lambda r: (r["success_rate"], r["key"]))
+
+
+def select_checkpoint(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | None,
+                      obs_features: list[str] | None, n_states: int, last: int,
+                      seed: int = VALIDATION_SEED, device: str = "cpu"
+                      ) -> tuple[int, Path, Path | None]:
+    """Among the ``last`` newest checkpoints of an SB3 run, the one that lands most of the
+    validation states; writes ``selection.yml`` atomically and returns ``(steps, model path,
+    VecNormalize path or None)``."""
+    from agents.runs import checkpoints
+
+    if int(last) < 1:
+        raise ValueError(f"select_checkpoint last={last!r} must be >= 1")
+    found = checkpoints(run_dir)[:int(last)]
+    if not found:
+        raise FileNotFoundError(f"no checkpoint in {Path(run_dir) / 'checkpoints'}")
+    cands = []
+    for steps, path in sorted(found):
+        vn = path.parent / f"rl_model_vecnormalize_{steps}_steps.pkl"
+        cands.append((steps, path, vn if vn.exists() else None))
+    scores = score_candidates(cands, env_id, env_kwargs, obs_features, n_states, seed, device,
+                              label="checkpoint at step")
+    best = best_of(scores)
+    write_text_atomic(Path(run_dir) / "selection.yml", yaml.safe_dump(
+        {"validation_seed": int(seed), "n_states": int(n_states),
+         "chosen_steps": best["key"],
+         "scores": [{"steps": s["key"], "success_rate": s["success_rate"],
+                     "fuel_mean_kg": s["fuel_mean_kg"]} for s in scores]}, sort_keys=False))
+    print(f"selection: the checkpoint at step {best['key']:,} "
+          f"({100 * best['success_rate']:.1f} %) is the final policy")
+    return next(c for c in cands if c[0] == best["key"])
