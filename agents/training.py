@@ -402,6 +402,9 @@ def noise_anneal_callback(total_timesteps: int, start_fraction: float, final_log
         def _on_rollout_start(self) -> None:  # after each PPO update, before collecting
             self._apply()
 
+        def _on_training_end(self) -> None:  # the final model carries the final noise
+            self._apply()
+
         def _on_step(self) -> bool:
             return True
 
