@@ -166,12 +166,6 @@ def test_pinpoint_ppo_quick_with_curriculum_features_and_shaping(tmp_path):
     hp = yaml.safe_load((run_dir / "config.yml").read_text())
     assert hp["curriculum"] and hp["obs_features"] and hp["reward_shaping"]
     assert hp["curriculum"]["start_noise"]["position_m"] > 0
-    # the exploration noise was set to its final value by the end of training
-    from stable_baselines3 import PPO
-
-    final = PPO.load(run_dir / "checkpoints" / "rl_model_4096_steps.zip", device="cpu")
-    np.testing.assert_allclose(final.policy.log_std.detach().numpy(),
-                               hp["noise_anneal"]["final_log_std"], atol=0.05)
     # the final policy is the best of the last checkpoints on validation cases, copied whole
     sel = yaml.safe_load((run_dir / "selection.yml").read_text())
     assert sel["n_states"] == 2 and sel["validation_seed"] == 50000
