@@ -229,14 +229,13 @@ def _check_start_noise(noise: dict[str, float] | None, scenario
     if not noise:
         return None
     from lunar_env.scenarios import PinpointScenario
+    from lunar_env.validation import require_number, require_option_keys
 
     if not isinstance(scenario, PinpointScenario):
         raise ValueError("start_noise is available for the pinpoint env only")
-    allowed = {"position_m", "velocity_m_s"}
-    unknown = set(noise) - allowed
-    if unknown:
-        raise ValueError(f"start_noise keys {sorted(unknown)} unknown; allowed: {sorted(allowed)}")
-    pos, vel = float(noise.get("position_m", 0.0)), float(noise.get("velocity_m_s", 0.0))
+    require_option_keys("start_noise", noise, ("position_m", "velocity_m_s"))
+    pos, vel = (require_number(f"start_noise {k}", noise.get(k, 0.0))
+                for k in ("position_m", "velocity_m_s"))
     for name, v in (("position_m", pos), ("velocity_m_s", vel)):
         if not (np.isfinite(v) and v >= 0.0):
             raise ValueError(f"start_noise {name}={v!r} must be finite and >= 0")

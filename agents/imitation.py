@@ -860,7 +860,7 @@ def select_iteration(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | No
     done = sorted((int(m.group(1)), f) for f in ckdir.iterdir() if (m := _DG_CKPT.match(f.name)))
     if not done:
         raise FileNotFoundError(f"no DAgger checkpoint in {ckdir}")
-    scores = score_candidates([(it, f, None) for it, f in done], env_id, env_kwargs,
+    scores = score_candidates(done, env_id, env_kwargs,
                               obs_features, n_states, seed, device, label="DAgger iteration")
     best = best_of(scores)
     write_text_atomic(run_dir / "selection.yml", yaml.safe_dump(

@@ -26,27 +26,28 @@ __all__ = ["score_candidates", "select_checkpoint"]
 VALIDATION_SEED = 50000
 
 
-def score_candidates(candidates: list[tuple[int, Path, Path | None]], env_id: str,
+def score_candidates(candidates: list[tuple[int, Path]], env_id: str,
                      env_kwargs: dict[str, Any] | None, obs_features: list[str] | None,
                      n_states: int, seed: int = VALIDATION_SEED, device: str = "cpu",
                      label: str = "checkpoint") -> list[dict[str, Any]]:
-    """Landings of each candidate ``(key, model .zip, VecNormalize .pkl or None)`` on the
-    validation cases; one dict per candidate (``key``, ``success_rate``, ``fuel_mean_kg`` of
-    its landings), in the candidates' order. Prints one line per candidate."""
-    from stable_baselines3 import PPO
-
+    """Landings of each candidate ``(key, model .zip)`` on the validation cases; one dict per
+    candidate (``key``, ``model``, ``vecnormalize``: the statistics file found for it by
+    :func:`agents.runs.load_trained` or None, ``success_rate``, ``fuel_mean_kg`` of its
+    landings), in the candidates' order. Prints one line per candidate."""
     from agents.evaluate import SB3Policy, rollout
+    from agents.runs import load_trained
 
     if int(n_states) < 1:
         raise ValueError(f"n_states={n_states!r} must be >= 1")
     scores = []
-    for key, model_path, vn_path in candidates:
-        model = PPO.load(model_path, device=device)
+    for key, model_path in candidates:
+        model, vn_path, _ = load_trained(model_path, device=device)
         res = rollout(env_id, SB3Policy(model, vn_path, name=f"{label} {key}",
                                         obs_features=obs_features),
                       int(n_states), int(seed), env_kwargs, trace_cases=0)
         ok = res.is_success
-        scores.append({"key": int(key), "success_rate": float(ok.mean()),
+        scores.append({"key": int(key), "model": Path(model_path), "vecnormalize": vn_path,
+                       "success_rate": float(ok.mean()),
                        "fuel_mean_kg": float(np.mean(res.fuel_used_kg[ok])) if ok.any()
                        else float("nan")})
         print(f"selection: {label} {key} lands {100 * ok.mean():.1f} % of {n_states} "
@@ -73,12 +74,8 @@ def select_checkpoint(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | N
     found = checkpoints(run_dir)[:int(last)]
     if not found:
         raise FileNotFoundError(f"no checkpoint in {Path(run_dir) / 'checkpoints'}")
-    cands = []
-    for steps, path in sorted(found):
-        vn = path.parent / f"rl_model_vecnormalize_{steps}_steps.pkl"
-        cands.append((steps, path, vn if vn.exists() else None))
-    scores = score_candidates(cands, env_id, env_kwargs, obs_features, n_states, seed, device,
-                              label="checkpoint at step")
+    scores = score_candidates(sorted(found), env_id, env_kwargs, obs_features, n_states, seed,
+                              device, label="checkpoint at step")
     best = best_of(scores)
     write_text_atomic(Path(run_dir) / "selection.yml", yaml.safe_dump(
         {"validation_seed": int(seed), "n_states": int(n_states),
@@ -87,4 +84,4 @@ def select_checkpoint(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | N
                      "fuel_mean_kg": s["fuel_mean_kg"]} for s in scores]}, sort_keys=False))
     print(f"selection: the checkpoint at step {best['key']:,} "
           f"({100 * best['success_rate']:.1f} %) is the final policy")
-    return next(c for c in cands if c[0] == best["key"])
+    return best["key"], best["model"], best["vecnormalize"]

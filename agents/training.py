@@ -300,23 +300,18 @@ def _select_final(model, run_dir: Path, run: dict[str, Any], hp: dict[str, Any],
     statistics) become the newest-``last`` checkpoint that lands most of ``states`` validation
     cases (:mod:`agents.selection`); the last iterate stays the newest checkpoint, so
     ``--resume`` still extends the run. Returns the chosen model."""
-    import shutil
-
     from agents.selection import VALIDATION_SEED, select_checkpoint
+    from lunar_env.validation import require_option_keys
+    from optimizers.common.checkpoint import atomic_write_bytes
 
-    unknown = set(sel) - {"states", "last", "seed"}
-    if unknown:
-        raise ValueError(f"select_checkpoint keys {sorted(unknown)} unknown; allowed: "
-                         "['last', 'seed', 'states']")
+    require_option_keys("select_checkpoint", sel, ("states", "last", "seed"))
     steps, path, vn_path = select_checkpoint(
         run_dir, run["env"], hp.get("env_kwargs"), hp.get("obs_features"),
         int(sel.get("states", 100)), int(sel.get("last", 4)),
         int(sel.get("seed", VALIDATION_SEED)), run.get("device", "cpu"))
     for src, name in ((vn_path, "vecnormalize.pkl"), (path, "model.zip")):
-        if src is not None:  # copy then rename: model.zip is replaced atomically, last
-            tmp = run_dir / f".{name}.tmp"
-            shutil.copyfile(src, tmp)
-            os.replace(tmp, run_dir / name)
+        if src is not None:  # model.zip last: a model file implies its statistics are in place
+            atomic_write_bytes(run_dir / name, Path(src).read_bytes())
     return algo_class(algo).load(run_dir / "model.zip", device=run.get("device", "cpu"))
 
 
@@ -539,19 +534,18 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     warmup_steps = int(hp.get("critic_warmup_steps") or 0)
     if warmup_steps < 0:
         raise ValueError(f"critic_warmup_steps={warmup_steps}: must be >= 0")
-    warmup = [critic_warmup_callback(warmup_steps)] if warmup_steps else []
+    extra = [critic_warmup_callback(warmup_steps)] if warmup_steps else []
     anneal = hp.get("noise_anneal")
     if anneal:
-        unknown = set(anneal) - {"start_fraction", "final_log_std"}
-        if unknown:
-            raise ValueError(f"noise_anneal keys {sorted(unknown)} unknown; allowed: "
-                             "['final_log_std', 'start_fraction']")
-        warmup.append(noise_anneal_callback(n_timesteps, float(anneal.get("start_fraction", 0.85)),
-                                            float(anneal.get("final_log_std", -5.0))))
+        from lunar_env.validation import require_option_keys
+
+        require_option_keys("noise_anneal", anneal, ("start_fraction", "final_log_std"))
+        extra.append(noise_anneal_callback(n_timesteps, float(anneal.get("start_fraction", 0.85)),
+                                           float(anneal.get("final_log_std", -5.0))))
     try:
         if remaining > 0:
             model.learn(total_timesteps=remaining,
-                        callback=[ckpt_cb, info_cb, *warmup, *(callbacks or [])],
+                        callback=[ckpt_cb, info_cb, *extra, *(callbacks or [])],
                         reset_num_timesteps=not resume, tb_log_name="run",
                         progress_bar=not run.get("no_progress"))
     except KeyboardInterrupt:
