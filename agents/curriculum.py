@@ -117,11 +117,9 @@ class OptimalStartCurriculum(VecEnvWrapper):
     :param min_time_fraction, max_time_fraction: start times are drawn uniformly in this
         fraction of each optimal flight time.
     :param seed: seed of the cases and of the draws.
-    :param pool_seed: seed of the pool's cases if not ``seed``. Decision: the pinpoint pool
-        costs ~1 s of GPM + shooting per case, so its entry in ``ppo.yml`` fixes the pool seed:
-        every training seed then reads the same cached optima (``agents.pinpoint_optimum``
-        disk cache) instead of solving 256 new cases (the draws of start points still follow
-        ``seed``).
+    :param pool_seed: seed of the pool's cases if not ``seed``. The pinpoint entry in
+        ``ppo.yml`` fixes it, so that every training seed starts from the same optimal
+        trajectories (the draws of start points along them still follow ``seed``).
     :param pool_workers: kept for compatibility (the pool is solved in this process).
     :param start_noise: ``None`` or ``{position_m, velocity_m_s}`` (pinpoint env): Gaussian
         perturbations (σ per Cartesian component) added to every curriculum start, so that

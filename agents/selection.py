@@ -12,6 +12,7 @@ candidate. Deterministic actions, as in the evaluation.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -62,26 +63,39 @@ def best_of(scores: list[dict[str, Any]]) -> dict[str, Any]:
 
 def select_checkpoint(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | None,
                       obs_features: list[str] | None, n_states: int, last: int,
-                      seed: int = VALIDATION_SEED, device: str = "cpu"
-                      ) -> tuple[int, Path, Path | None]:
+                      seed: int = VALIDATION_SEED, device: str = "cpu",
+                      warn_below: float | None = 0.5) -> tuple[int, Path, Path | None]:
     """Among the ``last`` newest checkpoints of an SB3 run, the one that lands most of the
     validation states; writes ``selection.yml`` atomically and returns ``(steps, model path,
-    VecNormalize path or None)``."""
+    VecNormalize path or None)``.
+
+    If even the chosen one lands less than ``warn_below`` of the validation states (None: never),
+    a warning on stderr says so before any evaluation runs: the run did not learn to land, and
+    no choice of checkpoint mends that (issue 16: one pinpoint seed of ten stops 300-500 m
+    above the gate and falls, 0 % on every checkpoint). ``selection.yml`` records the flag."""
     from agents.runs import checkpoints
 
     if int(last) < 1:
         raise ValueError(f"select_checkpoint last={last!r} must be >= 1")
+    if warn_below is not None and not (0.0 <= float(warn_below) <= 1.0):
+        raise ValueError(f"select_checkpoint warn_below={warn_below!r} must be in [0, 1] or None")
     found = checkpoints(run_dir)[:int(last)]
     if not found:
         raise FileNotFoundError(f"no checkpoint in {Path(run_dir) / 'checkpoints'}")
     scores = score_candidates(sorted(found), env_id, env_kwargs, obs_features, n_states, seed,
                               device, label="checkpoint at step")
     best = best_of(scores)
+    low = warn_below is not None and best["success_rate"] < float(warn_below)
     write_text_atomic(Path(run_dir) / "selection.yml", yaml.safe_dump(
         {"validation_seed": int(seed), "n_states": int(n_states),
-         "chosen_steps": best["key"],
+         "chosen_steps": best["key"], "below_warn_threshold": bool(low),
          "scores": [{"steps": s["key"], "success_rate": s["success_rate"],
                      "fuel_mean_kg": s["fuel_mean_kg"]} for s in scores]}, sort_keys=False))
     print(f"selection: the checkpoint at step {best['key']:,} "
           f"({100 * best['success_rate']:.1f} %) is the final policy")
+    if low:
+        print(f"selection: WARNING: the best of the last {len(scores)} checkpoints lands only "
+              f"{100 * best['success_rate']:.1f} % of the validation states (< "
+              f"{100 * float(warn_below):.0f} %): this run has not learnt to land; train again "
+              f"with another --seed", file=sys.stderr, flush=True)
     return best["key"], best["model"], best["vecnormalize"]

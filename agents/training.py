@@ -296,7 +296,7 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
 
 def _select_final(model, run_dir: Path, run: dict[str, Any], hp: dict[str, Any],
                   sel: dict[str, Any], algo: str):
-    """``select_checkpoint: {states, last, seed}``: the final ``model.zip`` (and its
+    """``select_checkpoint: {states, last, seed, warn_below}``: the final ``model.zip`` (and its
     statistics) become the newest-``last`` checkpoint that lands most of ``states`` validation
     cases (:mod:`agents.selection`); the last iterate stays the newest checkpoint, so
     ``--resume`` still extends the run. Returns the chosen model."""
@@ -304,11 +304,12 @@ def _select_final(model, run_dir: Path, run: dict[str, Any], hp: dict[str, Any],
     from lunar_env.validation import require_option_keys
     from optimizers.common.checkpoint import atomic_write_bytes
 
-    require_option_keys("select_checkpoint", sel, ("states", "last", "seed"))
+    require_option_keys("select_checkpoint", sel, ("states", "last", "seed", "warn_below"))
     steps, path, vn_path = select_checkpoint(
         run_dir, run["env"], hp.get("env_kwargs"), hp.get("obs_features"),
         int(sel.get("states", 100)), int(sel.get("last", 4)),
-        int(sel.get("seed", VALIDATION_SEED)), run.get("device", "cpu"))
+        int(sel.get("seed", VALIDATION_SEED)), run.get("device", "cpu"),
+        warn_below=sel.get("warn_below", 0.5))
     for src, name in ((vn_path, "vecnormalize.pkl"), (path, "model.zip")):
         if src is not None:  # model.zip last: a model file implies its statistics are in place
             atomic_write_bytes(run_dir / name, Path(src).read_bytes())

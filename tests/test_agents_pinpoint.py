@@ -178,3 +178,52 @@ def test_from_dagger_profile_loads_the_pinpoint_clone():
     assert ppo["normalize"]["norm_obs"] is False
     assert ppo["env_kwargs"]["dt_s"] == 1.0 and ppo["curriculum"] is None
     assert 0 < ppo["critic_warmup_steps"] < ppo["n_timesteps"]
+
+
+def test_pinpoint_ppo_entry_trains_from_the_dispersion_after_the_curriculum():
+    """Issue 16, fifth session: the PPO-from-scratch seeds that missed 95 % were still learning
+    when training stopped (the curriculum annealed at 85 % of 6e6 steps, leaving 0.9e6 steps
+    from the evaluation's own starts). The entry keeps the curriculum's 5.1e6 steps and then
+    trains at least as long again from the dispersion, and the checkpoints the final policy is
+    chosen from all come after the curriculum has ended."""
+    from agents.hyperparams import default_hyperparams_path, load_hyperparams
+
+    ppo = load_hyperparams(default_hyperparams_path("ppo"), "LunarPinpointLanding-v2")
+    total = ppo["n_timesteps"]
+    curriculum_end = ppo["curriculum"]["anneal_fraction"] * total
+    assert 4.5e6 <= curriculum_end <= 5.5e6
+    assert total - curriculum_end >= 0.75 * curriculum_end
+    save_every = total / 20  # train.py's default checkpoint interval
+    first_candidate = total - (ppo["select_checkpoint"]["last"] - 1) * save_every
+    assert first_candidate > curriculum_end
+
+
+def test_select_checkpoint_warns_when_no_checkpoint_lands(tmp_path, monkeypatch, capsys):
+    """Issue 16, fifth session: one pinpoint PPO seed of ten lands 0 % on every checkpoint; the
+    selection must say so (stderr, selection.yml) instead of quietly shipping the best of
+    nothing, and keep quiet for a run that lands."""
+    import yaml
+
+    import agents.selection as sel
+
+    ck = tmp_path / "checkpoints"
+    ck.mkdir()
+    for steps in (100, 200):
+        (ck / f"rl_model_{steps}_steps.zip").write_bytes(b"x")
+    rates = {100: 0.0, 200: 0.02}
+    monkeypatch.setattr(sel, "score_candidates", lambda cands, *a, **k: [
+        {"key": key, "model": path, "vecnormalize": None, "success_rate": rates[key],
+         "fuel_mean_kg": 280.0} for key, path in cands])
+    steps, path, _ = sel.select_checkpoint(tmp_path, "LunarPinpointLanding-v2", None, None,
+                                           n_states=4, last=2)
+    assert steps == 200 and path.name == "rl_model_200_steps.zip"
+    assert "has not learnt to land" in capsys.readouterr().err
+    assert yaml.safe_load((tmp_path / "selection.yml").read_text())["below_warn_threshold"]
+
+    rates.update({200: 0.97})
+    sel.select_checkpoint(tmp_path, "LunarPinpointLanding-v2", None, None, n_states=4, last=2)
+    assert capsys.readouterr().err == ""
+    assert not yaml.safe_load((tmp_path / "selection.yml").read_text())["below_warn_threshold"]
+    with pytest.raises(ValueError, match="warn_below"):
+        sel.select_checkpoint(tmp_path, "LunarPinpointLanding-v2", None, None, n_states=4,
+                              last=2, warn_below=1.5)
