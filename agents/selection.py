@@ -71,7 +71,7 @@ def select_checkpoint(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | N
 
     If even the chosen one lands less than ``warn_below`` of the validation states (None: never),
     a warning on stderr says so before any evaluation runs: the run did not learn to land, and
-    no choice of checkpoint mends that (issue 16: two pinpoint PPO seeds of twelve land 0 % on
+    no choice of checkpoint mends that (issue 16: two pinpoint PPO seeds of fourteen land 0 % on
     every checkpoint). ``selection.yml`` records the flag."""
     from agents.runs import checkpoints
 

@@ -199,7 +199,7 @@ def test_pinpoint_ppo_entry_trains_from_the_dispersion_after_the_curriculum():
 
 
 def test_select_checkpoint_warns_when_no_checkpoint_lands(tmp_path, monkeypatch, capsys):
-    """Issue 16, fifth session: two pinpoint PPO seeds of twelve land 0 % on every checkpoint; the
+    """Issue 16, fifth session: two pinpoint PPO seeds of fourteen land 0 % on every checkpoint; the
     selection must say so (stderr, selection.yml) instead of quietly shipping the best of
     nothing, and keep quiet for a run that lands."""
     import yaml
