@@ -854,7 +854,7 @@ def select_iteration(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | No
     """
     from stable_baselines3 import PPO
 
-    from agents.selection import best_of, score_candidates
+    from agents.selection import best_of, score_candidates, write_selection
 
     ckdir = run_dir / "checkpoints"
     done = sorted((int(m.group(1)), f) for f in ckdir.iterdir() if (m := _DG_CKPT.match(f.name)))
@@ -863,10 +863,7 @@ def select_iteration(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | No
     scores = score_candidates(done, env_id, env_kwargs,
                               obs_features, n_states, seed, device, label="DAgger iteration")
     best = best_of(scores)
-    write_text_atomic(run_dir / "selection.yml", yaml.safe_dump(
-        {"validation_seed": seed, "n_states": n_states, "chosen_iteration": best["key"],
-         "scores": [{"iteration": r["key"], "success_rate": r["success_rate"],
-                     "fuel_mean_kg": r["fuel_mean_kg"]} for r in scores]}, sort_keys=False))
+    write_selection(run_dir, seed, n_states, "iteration", scores, best)
     print(f"DAgger selection: iteration {best['key']} ({100 * best['success_rate']:.1f} %)")
     return PPO.load(dict(done)[best["key"]], device=device)
 

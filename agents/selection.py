@@ -21,7 +21,7 @@ import yaml
 
 from agents.runs import write_text_atomic
 
-__all__ = ["score_candidates", "select_checkpoint"]
+__all__ = ["score_candidates", "select_checkpoint", "write_selection"]
 
 #: validation case set (see module docstring)
 VALIDATION_SEED = 50000
@@ -61,6 +61,19 @@ def best_of(scores: list[dict[str, Any]]) -> dict[str, Any]:
     return max(scores, key=lambda r: (r["success_rate"], r["key"]))
 
 
+def write_selection(run_dir: Path, seed: int, n_states: int, key_name: str,
+                    scores: list[dict[str, Any]], best: dict[str, Any],
+                    **extra: Any) -> None:
+    """``selection.yml`` (atomic): the validation set, ``chosen_<key_name>``, any ``extra``
+    fields, and each candidate's ``<key_name>``, success rate and fuel (one writer for the
+    PPO checkpoint and the DAgger iteration selections)."""
+    write_text_atomic(Path(run_dir) / "selection.yml", yaml.safe_dump(
+        {"validation_seed": int(seed), "n_states": int(n_states),
+         f"chosen_{key_name}": best["key"], **extra,
+         "scores": [{key_name: s["key"], "success_rate": s["success_rate"],
+                     "fuel_mean_kg": s["fuel_mean_kg"]} for s in scores]}, sort_keys=False))
+
+
 def select_checkpoint(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | None,
                       obs_features: list[str] | None, n_states: int, last: int,
                       seed: int = VALIDATION_SEED, device: str = "cpu",
@@ -74,28 +87,29 @@ def select_checkpoint(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | N
     no choice of checkpoint mends that (issue 16: two pinpoint PPO seeds of fourteen land 0 % on
     every checkpoint). ``selection.yml`` records the flag."""
     from agents.runs import checkpoints
+    from lunar_env.validation import require_number
 
     if int(last) < 1:
         raise ValueError(f"select_checkpoint last={last!r} must be >= 1")
-    if warn_below is not None and not (0.0 <= float(warn_below) <= 1.0):
-        raise ValueError(f"select_checkpoint warn_below={warn_below!r} must be in [0, 1] or None")
+    if warn_below is not None:
+        warn_below = require_number("select_checkpoint warn_below", warn_below)
+        if not 0.0 <= warn_below <= 1.0:
+            raise ValueError(f"select_checkpoint warn_below={warn_below!r} must be in [0, 1] "
+                             "or None")
     found = checkpoints(run_dir)[:int(last)]
     if not found:
         raise FileNotFoundError(f"no checkpoint in {Path(run_dir) / 'checkpoints'}")
     scores = score_candidates(sorted(found), env_id, env_kwargs, obs_features, n_states, seed,
                               device, label="checkpoint at step")
     best = best_of(scores)
-    low = warn_below is not None and best["success_rate"] < float(warn_below)
-    write_text_atomic(Path(run_dir) / "selection.yml", yaml.safe_dump(
-        {"validation_seed": int(seed), "n_states": int(n_states),
-         "chosen_steps": best["key"], "below_warn_threshold": bool(low),
-         "scores": [{"steps": s["key"], "success_rate": s["success_rate"],
-                     "fuel_mean_kg": s["fuel_mean_kg"]} for s in scores]}, sort_keys=False))
+    low = warn_below is not None and best["success_rate"] < warn_below
+    write_selection(run_dir, seed, n_states, "steps", scores, best,
+                    below_warn_threshold=bool(low))
     print(f"selection: the checkpoint at step {best['key']:,} "
           f"({100 * best['success_rate']:.1f} %) is the final policy")
     if low:
         print(f"selection: WARNING: the best of the last {len(scores)} checkpoints lands only "
               f"{100 * best['success_rate']:.1f} % of the validation states (< "
-              f"{100 * float(warn_below):.0f} %): this run has not learnt to land; train again "
+              f"{100 * warn_below:.0f} %): this run has not learnt to land; train again "
               f"with another --seed", file=sys.stderr, flush=True)
     return best["key"], best["model"], best["vecnormalize"]
