@@ -121,6 +121,11 @@ class OptimalStartCurriculum(VecEnvWrapper):
         ``ppo.yml`` fixes it, so that every training seed starts from the same optimal
         trajectories (the draws of start points along them still follow ``seed``).
     :param pool_workers: kept for compatibility (the pool is solved in this process).
+    :param start_window: ``None`` or ``{initial_min_fraction, widen_fraction}``: the window of
+        start fractions opens late and widens backwards (Florensa et al. 2017's reverse
+        curriculum): at step 0 starts are drawn in ``[initial_min_fraction, max_time_fraction]``
+        of the optimal flight, and the lower bound moves linearly to ``min_time_fraction`` over
+        the first ``widen_fraction`` of training. ``None``: the whole window from the start.
     :param start_noise: ``None`` or ``{position_m, velocity_m_s}`` (pinpoint env): Gaussian
         perturbations (σ per Cartesian component) added to every curriculum start, so that
         the policy also starts *off* the optimal trajectories and learns to recover (the
@@ -136,6 +141,7 @@ class OptimalStartCurriculum(VecEnvWrapper):
                  anneal_fraction: float = 0.7, n_trajectories: int = 256,
                  min_time_fraction: float = 0.0, max_time_fraction: float = 1.0,
                  seed: int = 0, pool_seed: int | None = None, pool_workers: int = 1,
+                 start_window: dict[str, float] | None = None,
                  start_noise: dict[str, float] | None = None, progress: bool = True) -> None:
         super().__init__(venv)
         native = getattr(venv, "native", None)
@@ -155,6 +161,8 @@ class OptimalStartCurriculum(VecEnvWrapper):
         self.anneal_fraction = float(anneal_fraction)
         self.min_time_fraction = float(min_time_fraction)
         self.max_time_fraction = float(max_time_fraction)
+        self.start_window = _check_start_window(start_window, self.min_time_fraction,
+                                                self.max_time_fraction)
         self.rng = np.random.default_rng(seed + 7919)
         t0 = time.perf_counter()
         self.pool_states, self.pool_times = optimal_start_pool(
@@ -173,6 +181,15 @@ class OptimalStartCurriculum(VecEnvWrapper):
         frac = self.num_timesteps / max(self.total_timesteps * self.anneal_fraction, 1.0)
         return self.start_prob * max(0.0, 1.0 - frac)
 
+    @property
+    def current_min_fraction(self) -> float:
+        """Lower bound of the start fractions at the current training step."""
+        if self.start_window is None:
+            return self.min_time_fraction
+        first, widen = self.start_window
+        frac = min(self.num_timesteps / max(self.total_timesteps * widen, 1.0), 1.0)
+        return first + (self.min_time_fraction - first) * frac
+
     def _restart(self, idx: np.ndarray, obs: np.ndarray) -> np.ndarray:
         """Move sub-envs ``idx`` (just reset) to pool states with probability ``p``."""
         self.n_starts += len(idx)
@@ -185,7 +202,7 @@ class OptimalStartCurriculum(VecEnvWrapper):
             return obs
         n_traj, n_pts = self.pool_times.shape
         k = self.rng.integers(0, n_traj, len(pick))
-        lo = int(np.floor(self.min_time_fraction * n_pts))
+        lo = int(np.floor(self.current_min_fraction * n_pts))
         hi = max(int(np.ceil(self.max_time_fraction * n_pts)), lo + 1)
         j = self.rng.integers(lo, hi, len(pick))
         self.start_fraction[pick] = j / n_pts
@@ -217,8 +234,29 @@ class OptimalStartCurriculum(VecEnvWrapper):
         return obs, rew, done, infos
 
     def curriculum_info(self) -> dict[str, Any]:
-        return {"p": self.current_prob, "curriculum_starts": self.n_curriculum_starts,
+        return {"p": self.current_prob, "min_fraction": self.current_min_fraction,
+                "curriculum_starts": self.n_curriculum_starts,
                 "starts": self.n_starts}
+
+
+def _check_start_window(window: dict[str, float] | None, min_fraction: float,
+                        max_fraction: float) -> tuple[float, float] | None:
+    """(initial lower bound of the start fractions, share of training it widens over), or None."""
+    if not window:
+        return None
+    from lunar_env.validation import require_number, require_option_keys
+
+    require_option_keys("start_window", window, ("initial_min_fraction", "widen_fraction"))
+    first = require_number("start_window initial_min_fraction",
+                           window.get("initial_min_fraction", min_fraction))
+    widen = require_number("start_window widen_fraction", window.get("widen_fraction", 0.0))
+    if not (min_fraction <= first < max_fraction):
+        raise ValueError(f"start_window initial_min_fraction={first!r} must be in "
+                         f"[min_time_fraction={min_fraction!r}, "
+                         f"max_time_fraction={max_fraction!r})")
+    if not (0.0 < widen <= 1.0):
+        raise ValueError(f"start_window widen_fraction={widen!r} must be in (0, 1]")
+    return float(first), float(widen)
 
 
 def _check_start_noise(noise: dict[str, float] | None, scenario

@@ -61,6 +61,7 @@ from agents.hyperparams import (
     load_hyperparams,
     parse_override,
 )
+from agents.race import race_done, seed_race
 from agents.runs import (
     claim_run_dir,
     load_trained,
@@ -203,11 +204,14 @@ def main(argv: list[str] | None = None) -> int:
         if not (run_dir / "args.yml").exists() or not (run_dir / "config.yml").exists():
             parser.error(f"--resume {run_dir}: not a run directory (args.yml/config.yml missing)")
         run, hp = read_run(run_dir)
-        try:  # validate before anything is rewritten (a failed resume changes nothing)
-            resumable_checkpoint(run_dir, needs_vecnormalize=bool(hp.get("normalize")),
-                                 log=lambda msg: None)
-        except FileNotFoundError as exc:
-            parser.error(f"--resume {run_dir}: {exc}")
+        # validate before anything is rewritten (a failed resume changes nothing); a run still
+        # in its seed race resumes its candidates from their own checkpoints instead
+        if not (hp.get("seed_race") and not race_done(run_dir)):
+            try:
+                resumable_checkpoint(run_dir, needs_vecnormalize=bool(hp.get("normalize")),
+                                     log=lambda msg: None)
+            except FileNotFoundError as exc:
+                parser.error(f"--resume {run_dir}: {exc}")
         if args.n_timesteps is not None:  # allow extending a finished run
             if args.n_timesteps < 1:
                 parser.error(f"-n {args.n_timesteps}: must be >= 1")
@@ -258,8 +262,15 @@ def main(argv: list[str] | None = None) -> int:
     print(f"Run directory: {run_dir}  (algo={run['algo']}, env={run['env']}, "
           f"config={run['config']}, seed={run['seed']})")
     try:
+        if hp.get("seed_race") and not race_done(run_dir):
+            # a few seeds side by side to the decision step, then the winner alone
+            run = seed_race(hp, run, run_dir)
+            resume = True
         train(hp, run, run_dir, resume=resume, on_resumed=on_resumed)
     except KeyboardInterrupt:
+        if hp.get("seed_race") and not race_done(run_dir):
+            print(f"\nInterrupted during the seed race; continue with: python train.py "
+                  f"--resume {run_dir}", file=sys.stderr)
         return 130
     n_eval = 0 if run.get("no_eval") else int(run.get("eval_states") or 0)
     if n_eval > 0:

@@ -253,6 +253,8 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
                     parts.append(f"from dispersion {100 * np.mean(c['dispersed_success']):.1f} %"
                                  f" of {len(c['dispersed_success'])}")
                 parts.append(f"curriculum p {cur.current_prob:.2f}")
+                if cur.start_window is not None:
+                    parts.append(f"starts from {cur.current_min_fraction:.2f}")
             parts.append(f"{time.perf_counter() - self._t0:.0f} s")
             for v in c.values():
                 v.clear()
@@ -281,6 +283,7 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
             cur = _find_wrapper(self.training_env, "OptimalStartCurriculum")
             if cur is not None:
                 self.logger.record("curriculum/start_prob", cur.current_prob)
+                self.logger.record("curriculum/min_start_fraction", cur.current_min_fraction)
             for k, vals in self._acc.items():
                 if vals:
                     self.logger.record(f"episode/{k}", float(np.mean(vals)))
@@ -407,6 +410,25 @@ def noise_anneal_callback(total_timesteps: int, start_fraction: float, final_log
     return NoiseAnneal()
 
 
+def stop_at_callback(steps: int):
+    """An SB3 callback that ends ``learn()`` at the first rollout that would start at or after
+    ``steps``, so the schedules (learning rate, curriculum) keep the run's full length and the
+    model is the one after the last complete update. SB3 stops on the first ``on_step`` of that
+    rollout: ``num_timesteps`` counts its one discarded batch step (``n_envs`` more)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class StopAt(BaseCallback):
+        stop = False
+
+        def _on_rollout_start(self) -> None:
+            self.stop = self.model.num_timesteps >= steps
+
+        def _on_step(self) -> bool:
+            return not self.stop
+
+    return StopAt()
+
+
 def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False,
           callbacks: list | None = None, on_resumed=None):
     """Train (or continue) one run; returns ``(model, run_dir)``.
@@ -415,7 +437,9 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     ``callbacks`` extra SB3 callbacks. A ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM) raised during
     training writes a checkpoint and propagates. ``on_resumed()`` is called once a resumed
     checkpoint has loaded (the CLI records a changed config only then: a failed resume changes
-    nothing in the run directory).
+    nothing in the run directory). ``run["stop_at_steps"]`` (a seed-race candidate,
+    :mod:`agents.race`) ends training at the first rollout boundary at or after that step, with
+    the schedules of the full ``n_timesteps`` and no checkpoint selection.
     """
     import torch
     from stable_baselines3.common.utils import set_random_seed
@@ -543,6 +567,11 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         require_option_keys("noise_anneal", anneal, ("start_fraction", "final_log_std"))
         extra.append(noise_anneal_callback(n_timesteps, float(anneal.get("start_fraction", 0.85)),
                                            float(anneal.get("final_log_std", -5.0))))
+    stop_at = run.get("stop_at_steps")
+    if stop_at is not None:  # a seed-race candidate (agents.race): the full run's schedules,
+        extra.append(stop_at_callback(int(stop_at)))  # stopped at the decision step
+        if model.num_timesteps >= int(stop_at):
+            remaining = 0
     try:
         if remaining > 0:
             model.learn(total_timesteps=remaining,
@@ -560,8 +589,16 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     wall = time.perf_counter() - t0
     # (no learn() call when a run killed after its final checkpoint is resumed: the callback
     # was never attached, and the final checkpoint is already the final state)
+    if (stop_at is not None and getattr(ckpt_cb, "model", None) is not None
+            and ckpt_cb._last_saved == ckpt_cb._last_trained):
+        # a stopped race candidate whose checkpoint of the last update exists: only the
+        # discarded step of the untrained rollout is rolled back (re-saving would overwrite the
+        # checkpoint's VecNormalize statistics with ones that counted that step)
+        model.num_timesteps = ckpt_cb._last_trained
     if getattr(ckpt_cb, "model", None) is not None and ckpt_cb._last_saved != model.num_timesteps:
-        ckpt_cb.save_now()  # the newest checkpoint is the final state: --resume can extend it
+        # the newest checkpoint is the final state: --resume can extend it (a stopped race
+        # candidate rolls back the discarded step of its last, untrained rollout)
+        ckpt_cb.save_now(interrupted=stop_at is not None)
     vn = model.get_vec_normalize_env()
     if vn is not None:
         save_vecnormalize_atomic(vn, run_dir / "vecnormalize.pkl")
@@ -574,6 +611,8 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
           f"Model: {run_dir / 'model.zip'}")
     venv.close()
     sel = hp.get("select_checkpoint")
-    if sel:  # after the summary line: it reports the run, the selection the chosen checkpoint
+    # after the summary line: it reports the run, the selection the chosen checkpoint (a run
+    # stopped before its end, a race candidate, has nothing to choose from yet)
+    if sel and model.num_timesteps >= n_timesteps:
         model = _select_final(model, run_dir, run, hp, dict(sel), algo)
     return model, run_dir

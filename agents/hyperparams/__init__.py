@@ -59,7 +59,7 @@ PROFILE_SEPARATOR = "@"
 #: keys consumed by the training script itself, not passed to the algorithm constructor
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "noise_type", "noise_std",
             "env_kwargs", "curriculum", "obs_features", "reward_shaping", "critic_warmup_steps",
-            "select_checkpoint", "noise_anneal")
+            "select_checkpoint", "noise_anneal", "seed_race")
 
 _ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU",
                 "gelu": "GELU", "silu": "SiLU"}

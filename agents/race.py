@@ -1,0 +1,233 @@
+"""Seed race: train a few seeds side by side for the first part of a run, continue the one that
+has learnt to land.
+
+Why (issue 16): whether a pinpoint PPO run meets the target is, to a large part, the seed's
+draw. Of fourteen seeds of the 9e6 entry trained alone, eleven land 95-100 % of the evaluation
+states; two never learn to land (0 %) and one lands 77.5 %; a fifteenth run (seed 16 resumed
+at 3.15e6 steps on another random stream) ended at 41 %. The runs that will miss are visible
+before the end: at 6.3e6 steps (70 % of training, after the curriculum) the deterministic
+policies of the eleven land 63-100 % of the held-out validation cases, the four others 0, 0,
+20 and 42 %. (At 3.15e6 steps the two that never land are at 0 % already, but a run landing
+48 % there still ended at 41 %: deciding that early removes only the stuck runs.) Two runs side
+by side on a 2-core machine each train at ~85 % of the speed of one alone, so the default run
+trains seeds ``seed, seed + 1`` together to the decision step, keeps the one whose checkpoint
+lands more of the validation cases (:data:`agents.selection.VALIDATION_SEED`.., never the
+evaluation's), and continues it alone (``--resume`` from its checkpoint: same schedules, same
+total steps). It misses only if both seeds are of the missing kind. This is successive halving
+over seeds (Jamieson & Talwalkar 2016; Li et al. 2018, Hyperband), decided by the env's own
+verdict.
+
+Layout: the candidates are full run directories ``<run>/race/seed_<s>`` (each can be resumed
+or evaluated alone); ``<run>/race.yml`` records the scores and the chosen seed; the winner's
+checkpoints are copied into ``<run>/checkpoints`` and the run's ``args.yml`` gets its seed, so
+the rest is an ordinary resumed run. An interrupted race resumes its candidates
+(``python train.py --resume <run>``).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import shutil
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from agents.runs import checkpoints, write_text_atomic
+
+__all__ = ["race_done", "race_settings", "seed_race"]
+
+
+def race_settings(hp: dict[str, Any]) -> tuple[int, float] | None:
+    """``(candidates, decide_at)`` of a ``seed_race`` entry, or None without one.
+
+    ``candidates``: seeds trained side by side (>= 2); ``decide_at``: share of ``n_timesteps``
+    at which the race is decided, in (0, 1)."""
+    spec = hp.get("seed_race")
+    if not spec:
+        return None
+    from lunar_env.validation import require_number, require_option_keys
+
+    require_option_keys("seed_race", spec, ("candidates", "decide_at"))
+    k = require_number("seed_race candidates", spec.get("candidates", 2))
+    at = require_number("seed_race decide_at", spec.get("decide_at", 0.7))
+    if k != int(k) or k < 2:
+        raise ValueError(f"seed_race candidates={k!r} must be an integer >= 2")
+    if not 0.0 < at < 1.0:
+        raise ValueError(f"seed_race decide_at={at!r} must be in (0, 1)")
+    return int(k), float(at)
+
+
+def race_done(run_dir: Path) -> bool:
+    """The race of ``run_dir`` is over: its winner's checkpoints are the run's (the last step of
+    :func:`seed_race`; before it, ``--resume`` goes back into the race)."""
+    return (Path(run_dir) / "checkpoints").is_dir()
+
+
+def _candidate_main(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> None:
+    """Child process: train one candidate to its stop step (or resume it there)."""
+    from agents.runs import resumable_checkpoint
+    from agents.training import train
+
+    prefix = f"[seed {run['seed']}] "
+    sys.stdout = _Prefixed(sys.stdout, prefix)
+    sys.stderr = _Prefixed(sys.stderr, prefix)
+    cand = Path(cand_dir)
+    try:
+        resumable_checkpoint(cand, needs_vecnormalize=bool(hp.get("normalize")),
+                             log=lambda msg: None)
+        resume = True
+    except FileNotFoundError:
+        resume = False
+    try:
+        train(hp, run, cand, resume=resume)
+    except KeyboardInterrupt:
+        sys.exit(130)
+
+
+class _Prefixed:
+    """A text stream that starts every line with ``prefix`` (two candidates share a console)."""
+
+    def __init__(self, stream, prefix: str) -> None:
+        self.stream, self.prefix, self._bol = stream, prefix, True
+
+    def write(self, text: str) -> int:
+        out = []
+        for piece in text.splitlines(keepends=True):
+            if self._bol:
+                out.append(self.prefix)
+            out.append(piece)
+            self._bol = piece.endswith("\n")
+        self.stream.write("".join(out))
+        self.stream.flush()
+        return len(text)
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+    def __getattr__(self, name: str):
+        return getattr(self.stream, name)
+
+
+def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[str, Any]:
+    """Run (or finish) the seed race of ``run_dir``; returns the run arguments with the chosen
+    seed, ``args.yml`` rewritten and the winner's checkpoints in ``run_dir/checkpoints``, ready
+    for ``train(hp, run, run_dir, resume=True)``. Idempotent once decided."""
+    from agents.selection import VALIDATION_SEED, score_candidates
+
+    run_dir = Path(run_dir)
+    k, decide_at = race_settings(hp)
+    n_total = int(hp["n_timesteps"])
+    stop_at = max(int(decide_at * n_total), 1)
+    race_file = run_dir / "race.yml"
+    if race_file.exists():
+        decision = yaml.safe_load(race_file.read_text())
+    else:
+        base_seed = int(run.get("race_seed", run["seed"]))
+        seeds = [base_seed + i for i in range(k)]
+        cand_hp = {key: v for key, v in hp.items() if key not in ("seed_race", "select_checkpoint")}
+        dirs = [run_dir / "race" / f"seed_{s}" for s in seeds]
+        print(f"Seed race: seeds {', '.join(map(str, seeds))} train side by side to step "
+              f"{stop_at:,} of {n_total:,}; the one that lands more validation cases continues "
+              f"alone (agents/race.py)", flush=True)
+        t0 = time.perf_counter()
+        _train_candidates(cand_hp, run, seeds, dirs, stop_at)
+        race_wall_s = time.perf_counter() - t0
+        sel = hp.get("select_checkpoint") or {}
+        n_states = int(sel.get("states", 100))
+        val_seed = int(sel.get("seed", VALIDATION_SEED))  # the checkpoint selection's cases
+        found = []
+        for s, d in zip(seeds, dirs, strict=True):
+            ck = checkpoints(d)
+            if not ck or ck[0][0] < stop_at:
+                raise RuntimeError(f"seed race: candidate {d} has no checkpoint at step "
+                                   f">= {stop_at}")
+            found.append((s, ck[0][1]))
+        scores = score_candidates(found, run["env"], hp.get("env_kwargs"),
+                                  hp.get("obs_features"), n_states, val_seed,
+                                  run.get("device", "cpu"), label="seed")
+        # the most landings; a tie goes to the earlier seed (the user's own first)
+        best = max(range(k), key=lambda i: (scores[i]["success_rate"], -i))
+        decision = {"seeds": seeds, "decide_at_steps": int(found[best][1].stem.split("_")[2]),
+                    "validation_seed": val_seed, "n_states": n_states,
+                    "chosen_seed": seeds[best], "race_wall_s": round(race_wall_s, 1),
+                    "scores": [{"seed": s, "success_rate": r["success_rate"]}
+                               for s, r in zip(seeds, scores, strict=True)]}
+        write_text_atomic(race_file, yaml.safe_dump(decision, sort_keys=False))
+        print(f"Seed race: seed {seeds[best]} continues "
+              f"({100 * scores[best]['success_rate']:.1f} % of {n_states} validation cases; "
+              + ", ".join(f"seed {s}: {100 * r['success_rate']:.1f} %"
+                          for s, r in zip(seeds, scores, strict=True)) + ")", flush=True)
+    chosen = int(decision["chosen_seed"])
+    _adopt(run_dir / "race" / f"seed_{chosen}", run_dir)
+    run = dict(run)
+    run.setdefault("race_seed", int(decision["seeds"][0]))
+    run["seed"] = chosen
+    write_text_atomic(run_dir / "args.yml", yaml.safe_dump(run, sort_keys=True))
+    return run
+
+
+def _adopt(cand: Path, run_dir: Path) -> None:
+    """Copy the winner's checkpoints, TensorBoard log and timing into the run (atomic rename of
+    the checkpoint folder; skipped when already there)."""
+    target = run_dir / "checkpoints"
+    if not target.exists():
+        tmp = run_dir / "checkpoints.tmp"
+        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.copytree(cand / "checkpoints", tmp)
+        os.replace(tmp, target)
+    for name in ("timing.yml",):
+        if (cand / name).exists() and not (run_dir / name).exists():
+            write_text_atomic(run_dir / name, (cand / name).read_text())
+    if (cand / "tb").is_dir() and not (run_dir / "tb").exists():
+        shutil.copytree(cand / "tb", run_dir / "tb")
+
+
+def _train_candidates(hp: dict[str, Any], run: dict[str, Any], seeds: list[int],
+                      dirs: list[Path], stop_at: int) -> None:
+    """Train every candidate to ``stop_at`` in its own process (one per core); a Ctrl-C or
+    SIGTERM checkpoints each and propagates as KeyboardInterrupt."""
+    ctx = multiprocessing.get_context("spawn")
+    procs = []
+    for s, d in zip(seeds, dirs, strict=True):
+        ck = checkpoints(d)
+        if ck and ck[0][0] >= stop_at:
+            continue  # finished before an interruption
+        d.mkdir(parents=True, exist_ok=True)
+        cand_run = dict(run, seed=s, run_dir=str(d), stop_at_steps=stop_at, no_progress=True,
+                        eval_states=0, no_eval=True)
+        cand_run.pop("race_seed", None)
+        write_text_atomic(d / "config.yml", yaml.safe_dump(hp, sort_keys=True))
+        write_text_atomic(d / "args.yml", yaml.safe_dump(cand_run, sort_keys=True))
+        p = ctx.Process(target=_candidate_main, args=(hp, cand_run, str(d)),
+                        name=f"seed-race-{s}")
+        p.start()
+        procs.append((s, d, p))
+
+    def _on_sigterm(signum, frame):
+        for _, _, p in procs:  # each checkpoints on SIGTERM (agents.training.train)
+            if p.is_alive():
+                os.kill(p.pid, signal.SIGTERM)
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        for _, _, p in procs:
+            p.join()
+    except KeyboardInterrupt:
+        for _, _, p in procs:  # the children got the Ctrl-C too: let them checkpoint
+            p.join()
+        raise
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    failed = [(s, d, p.exitcode) for s, d, p in procs if p.exitcode != 0]
+    if any(code == 130 for *_, code in failed):
+        raise KeyboardInterrupt
+    if failed:
+        s, d, code = failed[0]
+        raise RuntimeError(f"seed race: candidate seed {s} failed (exit code {code}); its run "
+                           f"directory is {d}")

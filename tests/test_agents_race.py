@@ -1,0 +1,111 @@
+"""Seed race (agents.race): candidates side by side to the decision step, the winner continues."""
+
+import pytest
+import yaml
+
+from agents import race as rc
+from agents import train as tr
+
+ENV_ID = "LunarPinpointLanding-v2"
+
+
+def test_race_settings_are_validated():
+    assert rc.race_settings({}) is None
+    assert rc.race_settings({"seed_race": {"candidates": 3, "decide_at": 0.3}}) == (3, 0.3)
+    for bad, match in (({"candidates": 1}, "candidates"), ({"candidates": 2.5}, "candidates"),
+                       ({"decide_at": 1.0}, "decide_at"), ({"decide_at": "soon"}, "decide_at"),
+                       ({"seeds": 2}, "seeds")):
+        with pytest.raises(ValueError, match=match):
+            rc.race_settings({"seed_race": bad})
+
+
+def _fake_candidates(run_dir, seeds, steps):
+    for s in seeds:
+        ck = run_dir / "race" / f"seed_{s}" / "checkpoints"
+        ck.mkdir(parents=True)
+        (ck / f"rl_model_{steps}_steps.zip").write_bytes(f"model of seed {s}".encode())
+
+
+@pytest.mark.parametrize("rates, chosen", [((0.0, 0.49), 1), ((0.3, 0.1), 0), ((0.0, 0.0), 0)])
+def test_the_seed_whose_checkpoint_lands_more_continues(tmp_path, monkeypatch, rates, chosen):
+    """The decision is the env's verdict on the validation cases; a tie keeps the user's seed."""
+    import agents.selection as sel
+
+    hp = {"n_timesteps": 1000, "seed_race": {"candidates": 2, "decide_at": 0.35},
+          "select_checkpoint": {"states": 7}}
+    run = {"env": ENV_ID, "seed": 15}
+    _fake_candidates(tmp_path, (15, 16), 352)
+    monkeypatch.setattr(rc, "_train_candidates", lambda *a, **k: None)
+    seen = {}
+
+    def score(found, env_id, env_kwargs, obs_features, n_states, seed, device, label):
+        seen.update(n_states=n_states, seed=seed, keys=[k for k, _ in found])
+        return [{"key": k, "success_rate": r} for (k, _), r in zip(found, rates, strict=True)]
+
+    monkeypatch.setattr(sel, "score_candidates", score)
+    out = rc.seed_race(hp, run, tmp_path)
+    want = (15, 16)[chosen]
+    assert seen == {"n_states": 7, "seed": sel.VALIDATION_SEED, "keys": [15, 16]}
+    assert out["seed"] == want and out["race_seed"] == 15
+    assert yaml.safe_load((tmp_path / "args.yml").read_text())["seed"] == want
+    decision = yaml.safe_load((tmp_path / "race.yml").read_text())
+    assert decision["chosen_seed"] == want and decision["decide_at_steps"] == 352
+    assert [s["success_rate"] for s in decision["scores"]] == list(rates)
+    # the winner's checkpoints are the run's; a second call (a resume) changes nothing
+    assert (tmp_path / "checkpoints" / "rl_model_352_steps.zip").read_bytes() == \
+        f"model of seed {want}".encode()
+    assert rc.race_done(tmp_path)
+    monkeypatch.setattr(sel, "score_candidates", None)  # decided: never scored again
+    assert rc.seed_race(hp, out, tmp_path)["seed"] == want
+
+
+def test_a_candidate_short_of_the_decision_step_is_an_error(tmp_path, monkeypatch):
+    hp = {"n_timesteps": 1000, "seed_race": {"candidates": 2, "decide_at": 0.5}}
+    _fake_candidates(tmp_path, (1, 2), 256)
+    monkeypatch.setattr(rc, "_train_candidates", lambda *a, **k: None)
+    with pytest.raises(RuntimeError, match="no checkpoint at step >= 500"):
+        rc.seed_race(hp, {"env": ENV_ID, "seed": 1}, tmp_path)
+
+
+def test_quick_race_end_to_end_and_its_resume(tmp_path, capfd):
+    """Two quick pinpoint candidates train in child processes to the decision step (a rollout
+    boundary, the discarded step rolled back), the winner continues to the end; re-deciding
+    from the candidates' checkpoints (a race interrupted after training) gives the same seed
+    without training again."""
+    run_dir = tmp_path / "run"
+    assert tr.main(["--quick", "--env", ENV_ID, "--seed", "3", "--run-dir", str(run_dir),
+                    "--no-progress", "--no-eval", "--no-tensorboard",
+                    "--hyperparams", "seed_race={candidates: 2, decide_at: 0.5}",
+                    "n_timesteps=4096"]) == 0
+    out = capfd.readouterr().out
+    assert "[seed 3] step" in out and "[seed 4] step" in out
+    decision = yaml.safe_load((run_dir / "race.yml").read_text())
+    assert decision["seeds"] == [3, 4] and decision["decide_at_steps"] == 2048
+    args = yaml.safe_load((run_dir / "args.yml").read_text())
+    assert args["seed"] == decision["chosen_seed"] and args["race_seed"] == 3
+    for s in (3, 4):  # each candidate stopped at the rollout boundary, with its checkpoint
+        cand = run_dir / "race" / f"seed_{s}"
+        model, _, _ = tr.load_trained(cand)
+        assert model.num_timesteps == 2048
+        assert (cand / "checkpoints" / "rl_model_2048_steps.zip").exists()
+    model, _, _ = tr.load_trained(run_dir)
+    assert model.num_timesteps == 4096
+    winner = run_dir / "race" / f"seed_{args['seed']}" / "checkpoints"
+    assert (run_dir / "checkpoints" / "rl_model_2048_steps.zip").read_bytes() == \
+        (winner / "rl_model_2048_steps.zip").read_bytes()
+    # back to "candidates trained, race not decided" (an interruption after the candidates'
+    # training): --resume decides again from the same checkpoints, without training them again,
+    # and trains the winner to the end
+    import shutil
+
+    shutil.rmtree(run_dir / "checkpoints")
+    (run_dir / "race.yml").unlink()
+    (run_dir / "args.yml").write_text(yaml.safe_dump(dict(args, seed=3)))
+    assert tr.main(["--resume", str(run_dir), "--no-progress"]) == 0
+    out = capfd.readouterr().out
+    assert "[seed" not in out  # no candidate trained again
+    again = yaml.safe_load((run_dir / "args.yml").read_text())
+    assert again["seed"] == args["seed"]
+    assert yaml.safe_load((run_dir / "race.yml").read_text())["chosen_seed"] == args["seed"]
+    model, _, _ = tr.load_trained(run_dir)
+    assert model.num_timesteps == 4096
