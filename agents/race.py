@@ -146,13 +146,13 @@ def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[st
             if not ck or ck[0][0] < stop_at:
                 raise RuntimeError(f"seed race: candidate {d} has no checkpoint at step "
                                    f">= {stop_at}")
-            found.append((s, ck[0][1]))
-        scores = score_candidates(found, run["env"], hp.get("env_kwargs"),
-                                  hp.get("obs_features"), n_states, val_seed,
-                                  run.get("device", "cpu"), label="seed")
+            found.append((s, ck[0][1], ck[0][0]))
+        scores = score_candidates([(s, path) for s, path, _ in found], run["env"],
+                                  hp.get("env_kwargs"), hp.get("obs_features"), n_states,
+                                  val_seed, run.get("device", "cpu"), label="seed")
         # the most landings; a tie goes to the earlier seed (the user's own first)
         best = max(range(k), key=lambda i: (scores[i]["success_rate"], -i))
-        decision = {"seeds": seeds, "decide_at_steps": int(found[best][1].stem.split("_")[2]),
+        decision = {"seeds": seeds, "decide_at_steps": int(found[best][2]),
                     "validation_seed": val_seed, "n_states": n_states,
                     "chosen_seed": seeds[best], "race_wall_s": round(race_wall_s, 1),
                     "scores": [{"seed": s, "success_rate": r["success_rate"]}
@@ -202,7 +202,10 @@ def _train_candidates(hp: dict[str, Any], run: dict[str, Any], seeds: list[int],
                         eval_states=0, no_eval=True)
         cand_run.pop("race_seed", None)
         write_text_atomic(d / "config.yml", yaml.safe_dump(hp, sort_keys=True))
-        write_text_atomic(d / "args.yml", yaml.safe_dump(cand_run, sort_keys=True))
+        # stop_at_steps is handed to the child, not recorded: `train.py --resume <candidate>`
+        # continues a candidate (a loser, say) to the run's full length
+        recorded = {key: v for key, v in cand_run.items() if key != "stop_at_steps"}
+        write_text_atomic(d / "args.yml", yaml.safe_dump(recorded, sort_keys=True))
         p = ctx.Process(target=_candidate_main, args=(hp, cand_run, str(d)),
                         name=f"seed-race-{s}")
         p.start()
