@@ -90,6 +90,8 @@ def test_quick_race_end_to_end_and_its_resume(tmp_path, capfd):
         assert (cand / "checkpoints" / "rl_model_2048_steps.zip").exists()
         # a candidate is an ordinary run: --resume continues it to the full length
         assert "stop_at_steps" not in yaml.safe_load((cand / "args.yml").read_text())
+        cand_hp = yaml.safe_load((cand / "config.yml").read_text())
+        assert "seed_race" not in cand_hp and cand_hp["select_checkpoint"]
     model, _, _ = tr.load_trained(run_dir)
     assert model.num_timesteps == 4096
     winner = run_dir / "race" / f"seed_{args['seed']}" / "checkpoints"
