@@ -16,7 +16,7 @@ evaluation's), and continues it alone (``--resume`` from its checkpoint: same sc
 total steps). This is successive halving over seeds (Jamieson & Talwalkar 2016; Li et al. 2018,
 Hyperband), decided by the env's own verdict. It removes a seed that never learns to land
 whenever the other one does; it cannot mend two slow seeds, and the seed it keeps can still
-end short (six raced default runs: four met the issue's targets, one kept two slow seeds'
+end short (seven raced default runs: five met the issue's targets, one kept two slow seeds'
 better one at 34 %, one kept a seed at 67 % that ended at 88 %; docs/notes/issue-16.md).
 
 Layout: the candidates are full run directories ``<run>/race/seed_<s>`` (each can be resumed
