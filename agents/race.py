@@ -41,7 +41,7 @@ import yaml
 
 from agents.runs import checkpoints, write_text_atomic
 
-__all__ = ["race_done", "race_settings", "seed_race"]
+__all__ = ["race_done", "race_pending", "race_settings", "seed_race"]
 
 
 def race_settings(hp: dict[str, Any]) -> tuple[int, float] | None:
@@ -68,6 +68,11 @@ def race_done(run_dir: Path) -> bool:
     """The race of ``run_dir`` is over: its winner's checkpoints are the run's (the last step of
     :func:`seed_race`; before it, ``--resume`` goes back into the race)."""
     return (Path(run_dir) / "checkpoints").is_dir()
+
+
+def race_pending(hp: dict[str, Any], run_dir: Path) -> bool:
+    """The run has a ``seed_race`` entry and its race is not over yet."""
+    return bool(hp.get("seed_race")) and not race_done(run_dir)
 
 
 def _candidate_main(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> None:
@@ -184,9 +189,9 @@ def _adopt(cand: Path, run_dir: Path) -> None:
         shutil.rmtree(tmp, ignore_errors=True)
         shutil.copytree(cand / "checkpoints", tmp)
         os.replace(tmp, target)
-    for name in ("timing.yml",):
-        if (cand / name).exists() and not (run_dir / name).exists():
-            write_text_atomic(run_dir / name, (cand / name).read_text())
+    timing = cand / "timing.yml"
+    if timing.exists() and not (run_dir / "timing.yml").exists():
+        write_text_atomic(run_dir / "timing.yml", timing.read_text())
     if (cand / "tb").is_dir() and not (run_dir / "tb").exists():
         shutil.copytree(cand / "tb", run_dir / "tb")
 

@@ -61,7 +61,7 @@ from agents.hyperparams import (
     load_hyperparams,
     parse_override,
 )
-from agents.race import race_done, seed_race
+from agents.race import race_pending, seed_race
 from agents.runs import (
     claim_run_dir,
     load_trained,
@@ -206,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
         run, hp = read_run(run_dir)
         # validate before anything is rewritten (a failed resume changes nothing); a run still
         # in its seed race resumes its candidates from their own checkpoints instead
-        if not (hp.get("seed_race") and not race_done(run_dir)):
+        if not race_pending(hp, run_dir):
             try:
                 resumable_checkpoint(run_dir, needs_vecnormalize=bool(hp.get("normalize")),
                                      log=lambda msg: None)
@@ -262,13 +262,13 @@ def main(argv: list[str] | None = None) -> int:
     print(f"Run directory: {run_dir}  (algo={run['algo']}, env={run['env']}, "
           f"config={run['config']}, seed={run['seed']})")
     try:
-        if hp.get("seed_race") and not race_done(run_dir):
+        if race_pending(hp, run_dir):
             # a few seeds side by side to the decision step, then the winner alone
             run = seed_race(hp, run, run_dir)
             resume = True
         train(hp, run, run_dir, resume=resume, on_resumed=on_resumed)
     except KeyboardInterrupt:
-        if hp.get("seed_race") and not race_done(run_dir):
+        if race_pending(hp, run_dir):
             print(f"\nInterrupted during the seed race; continue with: python train.py "
                   f"--resume {run_dir}", file=sys.stderr)
         return 130

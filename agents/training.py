@@ -154,6 +154,12 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
         from a state where every counted step has been trained on exactly once. The
         ``VecNormalize`` statistics, the replay buffer (off-policy) and the run's config are
         saved alongside. ``save_freq`` counts env steps (all envs together), not calls.
+
+        ``stop_at`` (a seed-race candidate, :mod:`agents.race`): at the first rollout start at
+        or after that step, the checkpoint of the last update is written (if it is not there
+        yet) and ``learn()`` ends, the schedules keeping the run's full length. SB3 ends on the
+        first ``on_step`` of that rollout, so the one batch step it discarded is rolled back
+        at the end of training.
         """
 
         def __init__(self) -> None:
@@ -163,19 +169,27 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
             self.save_every_steps = max(int(save_freq), 1)
             self._last_saved = None
             self.on_save = None  # called after every checkpoint (timing bookkeeping)
+            self.stop_at = None
+            self._stopping = False
 
         def _on_training_start(self) -> None:
             self._last_saved = self.model.num_timesteps
             self._last_trained = self.model.num_timesteps
 
         def _on_step(self) -> bool:
-            return True
+            return not self._stopping
 
         def _on_rollout_start(self) -> None:
             # the previous rollout (if any) has been collected *and* trained on
             self._last_trained = self.model.num_timesteps
-            if self.model.num_timesteps - self._last_saved >= self.save_every_steps:
+            self._stopping = self.stop_at is not None and self._last_trained >= self.stop_at
+            if (self.model.num_timesteps - self._last_saved >= self.save_every_steps
+                    or (self._stopping and self._last_saved != self._last_trained)):
                 self.save_now()
+
+        def _on_training_end(self) -> None:
+            if self._stopping:  # the discarded step of the untrained rollout
+                self.model.num_timesteps = self._last_trained
 
         def save_now(self, interrupted: bool = False) -> Path:
             """Write the checkpoint for the current ``num_timesteps`` and return its path.
@@ -410,25 +424,6 @@ def noise_anneal_callback(total_timesteps: int, start_fraction: float, final_log
     return NoiseAnneal()
 
 
-def stop_at_callback(steps: int):
-    """An SB3 callback that ends ``learn()`` at the first rollout that would start at or after
-    ``steps``, so the schedules (learning rate, curriculum) keep the run's full length and the
-    model is the one after the last complete update. SB3 stops on the first ``on_step`` of that
-    rollout: ``num_timesteps`` counts its one discarded batch step (``n_envs`` more)."""
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    class StopAt(BaseCallback):
-        stop = False
-
-        def _on_rollout_start(self) -> None:
-            self.stop = self.model.num_timesteps >= steps
-
-        def _on_step(self) -> bool:
-            return not self.stop
-
-    return StopAt()
-
-
 def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False,
           callbacks: list | None = None, on_resumed=None):
     """Train (or continue) one run; returns ``(model, run_dir)``.
@@ -569,7 +564,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                                            float(anneal.get("final_log_std", -5.0))))
     stop_at = run.get("stop_at_steps")
     if stop_at is not None:  # a seed-race candidate (agents.race): the full run's schedules,
-        extra.append(stop_at_callback(int(stop_at)))  # stopped at the decision step
+        ckpt_cb.stop_at = int(stop_at)  # stopped at the decision step
         if model.num_timesteps >= int(stop_at):
             remaining = 0
     try:
@@ -589,16 +584,8 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     wall = time.perf_counter() - t0
     # (no learn() call when a run killed after its final checkpoint is resumed: the callback
     # was never attached, and the final checkpoint is already the final state)
-    if (stop_at is not None and getattr(ckpt_cb, "model", None) is not None
-            and ckpt_cb._last_saved == ckpt_cb._last_trained):
-        # a stopped race candidate whose checkpoint of the last update exists: only the
-        # discarded step of the untrained rollout is rolled back (re-saving would overwrite the
-        # checkpoint's VecNormalize statistics with ones that counted that step)
-        model.num_timesteps = ckpt_cb._last_trained
     if getattr(ckpt_cb, "model", None) is not None and ckpt_cb._last_saved != model.num_timesteps:
-        # the newest checkpoint is the final state: --resume can extend it (a stopped race
-        # candidate rolls back the discarded step of its last, untrained rollout)
-        ckpt_cb.save_now(interrupted=stop_at is not None)
+        ckpt_cb.save_now()  # the newest checkpoint is the final state: --resume can extend it
     vn = model.get_vec_normalize_env()
     if vn is not None:
         save_vecnormalize_atomic(vn, run_dir / "vecnormalize.pkl")
