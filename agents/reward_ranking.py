@@ -12,9 +12,11 @@ success verdict:
   short (α − 5°), and the best of 20 uniformly random policies.
 
 The reward is right for RL when the closed-loop optimum ranks first and every failure below
-the optimum's open-loop replay. ``python -m agents.reward_ranking --env LunarPinpointLanding-v2``
-prints the table (``--json FILE`` also writes it); ``tests/test_env_pinpoint.py`` (slow) asserts
-the ranking.
+the optimum's open-loop replay. The column "with success bonus" adds the terminal reward that
+PPO's ``reward_shaping.success_bonus`` pays a success (:mod:`agents.shaping`; the potential
+part of the shaping is the same −Φ(s₀) for every strategy from one start, up to discounting).
+``python -m agents.reward_ranking --env LunarPinpointLanding-v2`` prints the table (``--json
+FILE`` also writes it); ``tests/test_env_pinpoint.py`` (slow) asserts the ranking.
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ __all__ = ["rank_strategies", "markdown_table", "main"]
 DEFAULT_GAMMA = 0.999
 
 
-def _fly(env, policy: Callable[[int], np.ndarray], gamma: float) -> dict[str, Any]:
+def _fly(env, policy: Callable[[int], np.ndarray], gamma: float, bonus: float
+         ) -> dict[str, Any]:
     env.reset(options={"nominal": True})
     ret = disc = 0.0
     k = 0
@@ -45,25 +48,30 @@ def _fly(env, policy: Callable[[int], np.ndarray], gamma: float) -> dict[str, An
         k += 1
         if term or trunc:
             break
-    return {"return": ret, "discounted": disc,
+    success = bool(info.get("is_success", False))
+    return {"return": ret, "discounted": disc, "return_with_bonus": ret + bonus * success,
             "gate_speed_m_s": float(info.get("touchdown_speed_m_s", math.nan)),
             "miss_m": float(info.get("miss_distance_m", math.nan)),
             "fuel_kg": float(info.get("fuel_used_kg", math.nan)),
-            "success": bool(info.get("is_success", False)), "steps": k}
+            "success": success, "steps": k}
 
 
 def rank_strategies(env_id: str = "LunarPinpointLanding-v2", *, n_random: int = 20,
                     gamma: float = DEFAULT_GAMMA, seed: int = 0,
-                    env_kwargs: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
+                    env_kwargs: dict[str, Any] | None = None,
+                    success_bonus: float | str | None = "auto") -> dict[str, dict[str, Any]]:
     """Fly the reference strategies from the nominal start; ``{name: metrics}`` in table order.
 
-    Metrics: ``return``, ``discounted`` (Σ γᵏ rₖ), ``gate_speed_m_s``, ``miss_m``, ``fuel_kg``,
-    ``success``, ``steps``. Raises ``ValueError`` for an env that is not a pinpoint env.
+    Metrics: ``return``, ``discounted`` (Σ γᵏ rₖ), ``return_with_bonus`` (the return plus
+    ``success_bonus``, :func:`agents.shaping.resolve_success_bonus`, for a success),
+    ``gate_speed_m_s``, ``miss_m``, ``fuel_kg``, ``success``, ``steps``. Raises
+    ``ValueError`` for an env that is not a pinpoint env.
     """
     import gymnasium as gym
 
     import lunar_env  # noqa: F401
     from agents.experts import PinpointPontryaginExpert
+    from agents.shaping import resolve_success_bonus
     from lunar_env.envs.pinpoint_landing import action_from_angles, angles_from_action
     from optimizers.reproduce.peng2012 import get_solver
 
@@ -81,6 +89,7 @@ def rank_strategies(env_id: str = "LunarPinpointLanding-v2", *, n_random: int = 
     t_ref = solver.ocp.scaling.time_s
     dt = float(env.dt_s)
     ab, bb = scenario.alpha_bounds_rad, scenario.beta_bounds_rad
+    bonus = resolve_success_bonus(success_bonus, env.success_thresholds)
 
     def optimal(k: int) -> np.ndarray:  # the law averaged over the step (8 midpoints)
         ts = (k + (np.arange(8) + 0.5) / 8) * dt
@@ -105,15 +114,15 @@ def rank_strategies(env_id: str = "LunarPinpointLanding-v2", *, n_random: int = 
         a = action_from_angles(alpha_rad, math.pi, ab, bb).astype(np.float32)
         return lambda k: a
 
-    out = {"Pontryagin feedback (closed loop)": _fly(env, feedback, gamma),
-           f"optimum, open loop ({dt:g} s holds)": _fly(env, optimal, gamma),
-           "diving (α at its lower bound)": _fly(env, constant(ab[0]), gamma),
-           "braking along the track (α = 0)": _fly(env, constant(0.0), gamma),
-           "climbing / hovering (α at its upper bound)": _fly(env, constant(ab[1]), gamma),
-           "flying past (optimal α + 20°)": _fly(env, shifted(20.0), gamma),
-           "short (optimal α − 5°)": _fly(env, shifted(-5.0), gamma)}
+    out = {"Pontryagin feedback (closed loop)": _fly(env, feedback, gamma, bonus),
+           f"optimum, open loop ({dt:g} s holds)": _fly(env, optimal, gamma, bonus),
+           "diving (α at its lower bound)": _fly(env, constant(ab[0]), gamma, bonus),
+           "braking along the track (α = 0)": _fly(env, constant(0.0), gamma, bonus),
+           "climbing / hovering (α at its upper bound)": _fly(env, constant(ab[1]), gamma, bonus),
+           "flying past (optimal α + 20°)": _fly(env, shifted(20.0), gamma, bonus),
+           "short (optimal α − 5°)": _fly(env, shifted(-5.0), gamma, bonus)}
     rng = np.random.default_rng(seed)
-    rand = [_fly(env, lambda k: rng.uniform(-1, 1, 2).astype(np.float32), gamma)
+    rand = [_fly(env, lambda k: rng.uniform(-1, 1, 2).astype(np.float32), gamma, bonus)
             for _ in range(int(n_random))]
     if rand:
         out[f"best of {len(rand)} random"] = max(rand, key=lambda m: m["return"])
@@ -126,10 +135,11 @@ def markdown_table(ranking: dict[str, dict[str, Any]]) -> str:
     def f(x: float, spec: str) -> str:
         return "–" if not math.isfinite(x) else format(x, spec)
 
-    lines = ["| strategy | return | discounted | gate speed (m/s) | miss (km) | fuel (kg) | "
-             "success |", "|---|---|---|---|---|---|---|"]
+    lines = ["| strategy | return | discounted | with success bonus | gate speed (m/s) | "
+             "miss (km) | fuel (kg) | success |", "|---|---|---|---|---|---|---|---|"]
     for name, m in sorted(ranking.items(), key=lambda kv: -kv[1]["return"]):
         lines.append(f"| {name} | {m['return']:.2f} | {m['discounted']:.2f} | "
+                     f"{m['return_with_bonus']:.2f} | "
                      f"{f(m['gate_speed_m_s'], '.2f')} | {f(m['miss_m'] / 1e3, '.3f')} | "
                      f"{f(m['fuel_kg'], '.1f')} | {m['success']} |")
     return "\n".join(lines)

@@ -22,6 +22,19 @@ Potential (YAML ``reward_shaping: {potential: surface_speed, weight: w}``):
     2 km gate sphere and d the distance to the target: the same form and scale as the
     pinpoint env's terminal penalty.
 
+``success_bonus`` (optional, ``reward_shaping: {..., success_bonus: auto}``)
+    A terminal reward B paid when the env's own verdict calls the episode a success. It is not
+    potential-based: it adds B to the return of every successful episode and nothing to the
+    others, so among successes the fuel ordering is unchanged and the fuel-optimal landing (a
+    success) keeps the best return; only failures lose ground against successes. Why (issue
+    16): the env's terminal penalty −log(1 + v/1 m/s) − log(1 + miss/100 m) has its steepest
+    slope at v = 0, miss = 0, so PPO spends its updates refining the landings that already
+    succeed (a 100 m miss: 1/200 per m) more than rescuing those just outside the verdict (a
+    1 km miss: 1/1100 per m), while the evaluation counts only the verdict. ``auto``: B equals
+    the env's terminal penalty at the verdict's boundary, log(1 + v_max/1 m/s) + log(1 +
+    miss_max/100 m) (3.58 for the pinpoint env's 5 m/s and 500 m): the worst success then ends
+    with what a perfect landing ends with without the bonus (0); a number sets B directly.
+
 The potential is computed from the observation (altitude, radial and horizontal speed), so the
 wrapper sits outside the start-state curriculum and needs no access to the env's state.
 Evaluation is not affected (it measures touchdown speed and fuel, not rewards). Decision: a
@@ -38,7 +51,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
 
 from agents.features import feature_constants
 
-__all__ = ["PotentialShaping", "surface_speed_m_s"]
+__all__ = ["PotentialShaping", "resolve_success_bonus", "surface_speed_m_s"]
 
 POTENTIALS = ("surface_speed", "gate_speed_and_range")
 _PINPOINT_POTENTIALS = ("gate_speed_and_range",)
@@ -77,10 +90,12 @@ class PotentialShaping(VecEnvWrapper):
     :param gamma: the algorithm's discount factor (the shaping must use the same γ).
     :param potential: ``"surface_speed"``.
     :param weight: w > 0.
+    :param success_bonus: None (default), ``"auto"`` or a finite number >= 0: the terminal
+        reward added to a successful episode (module docstring).
     """
 
     def __init__(self, venv, gamma: float, potential: str = "surface_speed",
-                 weight: float = 1.0) -> None:
+                 weight: float = 1.0, success_bonus: float | str | None = None) -> None:
         super().__init__(venv)
         if potential not in POTENTIALS:
             raise ValueError(f"potential={potential!r}; allowed: {POTENTIALS}")
@@ -105,6 +120,7 @@ class PotentialShaping(VecEnvWrapper):
         self.potential = potential
         self.weight = float(weight)
         self._phi: np.ndarray | None = None
+        self.success_bonus = resolve_success_bonus(success_bonus, native.success_thresholds)
 
     def phi(self, obs: np.ndarray) -> np.ndarray:
         """Φ of observations, shape (B,)."""
@@ -124,8 +140,29 @@ class PotentialShaping(VecEnvWrapper):
         phi_next = self.phi(obs)
         target = np.where(done, 0.0, phi_next)  # Φ(terminal) = 0; obs of a done env is a reset
         shaped = rew + (self.gamma * target - self._phi).astype(np.float32)
+        if self.success_bonus:
+            won = np.fromiter((d and bool(info.get("is_success")) for d, info in
+                               zip(done, infos, strict=True)), dtype=bool, count=len(infos))
+            shaped = shaped + np.float32(self.success_bonus) * won
         self._phi = phi_next
         return obs, shaped.astype(np.float32), done, infos
 
     def config(self) -> dict[str, Any]:
-        return {"potential": self.potential, "weight": self.weight, "gamma": self.gamma}
+        return {"potential": self.potential, "weight": self.weight, "gamma": self.gamma,
+                "success_bonus": self.success_bonus}
+
+
+def resolve_success_bonus(value: float | str | None, thresholds: dict[str, float]) -> float:
+    """The success bonus B of a ``success_bonus`` setting (0.0 for None); ``thresholds``: the
+    env's ``success_thresholds``."""
+    if value is None:
+        return 0.0
+    if isinstance(value, str):
+        if value != "auto":
+            raise ValueError(f"success_bonus={value!r}; allowed: 'auto', a number >= 0 or null")
+        return float(np.log1p(thresholds["speed_m_s"])
+                     + np.log1p(thresholds.get("miss_m", 0.0) / 100.0))
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) \
+            or value < 0:
+        raise ValueError(f"success_bonus={value!r} must be 'auto', a finite number >= 0 or null")
+    return float(value)

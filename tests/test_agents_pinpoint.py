@@ -111,6 +111,36 @@ def test_pinpoint_features_decode_and_shaping():
     assert w.reset().shape == (2, w.observation_space.shape[0]) == (2, 31)
 
 
+def test_success_bonus_is_paid_on_the_env_verdict_only():
+    """success_bonus adds B to the reward of a step that ends a successful episode and nothing
+    anywhere else; 'auto' is the env's terminal penalty at its verdict's boundary."""
+    from agents.shaping import PotentialShaping
+    from agents.vec_env import make_sb3_vec_env
+
+    def shaped(bonus):
+        venv = make_sb3_vec_env("LunarPinpointLanding-v2", 3, seed=0)
+        w = PotentialShaping(venv, 0.998, potential="gate_speed_and_range",
+                             success_bonus=bonus)
+        w.reset()
+        obs0 = venv.reset()
+        verdict = [{"is_success": True}, {"is_success": False}, {"is_success": True}]
+        venv.step_wait = lambda: (obs0, np.zeros(3, np.float32),
+                                  np.array([True, True, False]), verdict)
+        venv.step_async(np.zeros((3, 2), np.float32))
+        return w, w.step_wait()[1]
+
+    w, with_bonus = shaped("auto")
+    _, without = shaped(None)
+    b = np.log1p(5.0) + np.log1p(500.0 / 100.0)
+    assert w.success_bonus == pytest.approx(b)
+    # only the first lander ended its episode with a success; the third's info is not a verdict
+    np.testing.assert_allclose(with_bonus - without, [b, 0.0, 0.0], rtol=1e-6)
+    assert shaped(1.5)[0].success_bonus == 1.5
+    for bad in ("big", -1.0, float("nan"), True):
+        with pytest.raises(ValueError, match="success_bonus"):
+            shaped(bad)
+
+
 def test_reference_profile_and_stop_point_features():
     """reference_profile is ~0 along the nominal optimal descent it is read from, and measures
     a speed or altitude offset in its units; stop_point is the straight-line stop of a lander

@@ -193,6 +193,11 @@ def test_optimal_pinpoint_landing_is_landable_and_ranked_best(env_id):
     # v1 (issue 16): diving no longer saves fuel over the other failures: it ranks last
     diving = next(k for k in others if k.startswith("diving"))
     assert others[diving] < min(v for k, v in others.items() if k != diving)
+    # with the success bonus PPO trains on (issue 16), the optimum is still first and the
+    # failures keep their order: only a success gains
+    bonus = {k: v["return_with_bonus"] for k, v in ranking.items()}
+    assert max(bonus, key=bonus.get) == names[0]
+    assert all(bonus[k] == ranking[k]["return"] for k in ranking if not ranking[k]["success"])
 
 
 def test_v1_charges_the_propellant_left_on_failure_and_v0_does_not():

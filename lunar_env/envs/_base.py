@@ -113,6 +113,15 @@ class _TaskDescription:
         """True for a pinpoint task (miss distance reported)."""
         return bool(self._task.has_target)
 
+    @property
+    def success_thresholds(self) -> dict[str, float]:
+        """The env's own landing verdict: ``speed_m_s`` (largest touchdown or gate speed of a
+        success) and, for a pinpoint task, ``miss_m`` (largest miss distance)."""
+        out = {"speed_m_s": float(self._task.success_speed_m_s)}
+        if self._task.has_target:
+            out["miss_m"] = float(self._task.success_miss_m)
+        return out
+
     def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """SI quantities encoded in observations (the inverse of the observation map).
 
