@@ -1,29 +1,29 @@
-"""Seed race: train a few seeds side by side for the first part of a run, continue the one that
-has learnt to land.
+"""Seed race: train a few seeds side by side and keep the one that has learnt to land.
 
 Why (issue 16): whether a pinpoint PPO run meets the target is, to a large part, the seed's
 draw. Of fourteen seeds of the 9e6 entry trained alone, eleven land 95-100 % of the evaluation
-states; two never learn to land (0 %) and one lands 77.5 %; a fifteenth run (seed 16 resumed
-at 3.15e6 steps on another random stream) ended at 41 %. The runs that will miss are visible
-before the end: at 6.3e6 steps (70 % of training, after the curriculum) the deterministic
-policies of the eleven land 63-100 % of the held-out validation cases, the four others 0, 0,
-20 and 42 %. (At 3.15e6 steps the two that never land are at 0 % already, but a run landing
-48 % there still ended at 41 %: deciding that early removes only the stuck runs.) Two runs side
-by side on a 2-core machine each train at ~85 % of the speed of one alone, so the default run
-trains seeds ``seed, seed + 1`` together to the decision step, keeps the one whose checkpoint
-lands more of the validation cases (:data:`agents.selection.VALIDATION_SEED`.., never the
-evaluation's), and continues it alone (``--resume`` from its checkpoint: same schedules, same
-total steps). This is successive halving over seeds (Jamieson & Talwalkar 2016; Li et al. 2018,
-Hyperband), decided by the env's own verdict. It removes a seed that never learns to land
-whenever the other one does; it cannot mend two slow seeds, and the seed it keeps can still
-end short (seven raced default runs: five met the issue's targets, one kept two slow seeds'
-better one at 34 %, one kept a seed at 67 % that ended at 88 %; docs/notes/issue-16.md).
+states; two never learn to land (0 %) and one lands 77.5 %. The default run therefore trains
+seeds ``seed, seed + 1`` in two processes, one per core (each at ~85-95 % of the speed of one
+run alone: a run uses one core), and keeps the one whose policy lands more of the held-out
+validation cases (:data:`agents.selection.VALIDATION_SEED`.., never the evaluation's). This is
+successive halving over seeds (Jamieson & Talwalkar 2016; Li et al. 2018, Hyperband), decided
+by the env's own verdict.
+
+``decide_at`` < 1 decides at that share of training, on each candidate's newest checkpoint,
+and continues the winner alone (``--resume`` from its checkpoint: same schedules, same total
+steps). ``decide_at: 1`` (the pinpoint entry since the seventh session) trains every candidate
+to the end, each with its own checkpoint selection in its own process, and the run adopts the
+winner's selected policy: a run alone uses one core, so the second candidate's last 30 % costs
+almost no wall time (raced runs alone: 13 min 10 s decided at 70 %; see docs/notes/issue-16.md
+for the run decided at the end), and the choice is made on the final policies instead of on a
+guess at 70 % (of nine races decided at 70 %, three chose a seed that ended at 88.3-93.1 %).
 
 Layout: the candidates are full run directories ``<run>/race/seed_<s>`` (each can be resumed
 or evaluated alone); ``<run>/race.yml`` records the scores and the chosen seed; the winner's
-checkpoints are copied into ``<run>/checkpoints`` and the run's ``args.yml`` gets its seed, so
-the rest is an ordinary resumed run. An interrupted race resumes its candidates
-(``python train.py --resume <run>``).
+checkpoints (and, decided at the end, its ``model.zip``, ``vecnormalize.pkl`` and
+``selection.yml``) are copied into the run and the run's ``args.yml`` gets its seed, so the
+rest is an ordinary run. An interrupted race resumes its candidates (``python train.py
+--resume <run>``).
 """
 
 from __future__ import annotations
@@ -41,14 +41,15 @@ import yaml
 
 from agents.runs import checkpoints, write_text_atomic
 
-__all__ = ["race_done", "race_pending", "race_settings", "seed_race"]
+__all__ = ["race_done", "race_pending", "race_settings", "race_trained_to_end", "seed_race"]
 
 
 def race_settings(hp: dict[str, Any]) -> tuple[int, float] | None:
     """``(candidates, decide_at)`` of a ``seed_race`` entry, or None without one.
 
     ``candidates``: seeds trained side by side (>= 2); ``decide_at``: share of ``n_timesteps``
-    at which the race is decided, in (0, 1)."""
+    at which the race is decided, in (0, 1]; at 1 every candidate trains to the end (with its
+    own checkpoint selection) and the race keeps the best final policy."""
     spec = hp.get("seed_race")
     if not spec:
         return None
@@ -59,8 +60,8 @@ def race_settings(hp: dict[str, Any]) -> tuple[int, float] | None:
     at = require_number("seed_race decide_at", spec.get("decide_at", 0.7))
     if k != int(k) or k < 2:
         raise ValueError(f"seed_race candidates={k!r} must be an integer >= 2")
-    if not 0.0 < at < 1.0:
-        raise ValueError(f"seed_race decide_at={at!r} must be in (0, 1)")
+    if not 0.0 < at <= 1.0:
+        raise ValueError(f"seed_race decide_at={at!r} must be in (0, 1]")
     return int(k), float(at)
 
 
@@ -73,6 +74,17 @@ def race_done(run_dir: Path) -> bool:
 def race_pending(hp: dict[str, Any], run_dir: Path) -> bool:
     """The run has a ``seed_race`` entry and its race is not over yet."""
     return bool(hp.get("seed_race")) and not race_done(run_dir)
+
+
+def race_trained_to_end(hp: dict[str, Any], run_dir: Path) -> bool:
+    """The run's race was decided at the full length and its winner's final policy is the
+    run's: nothing is left to train (``train.py -n`` extending the run trains again)."""
+    settings = race_settings(hp)
+    if settings is None or settings[1] < 1.0 or not race_done(run_dir):
+        return False
+    ck = checkpoints(run_dir)
+    return bool(ck) and ck[0][0] >= int(hp["n_timesteps"]) and \
+        (Path(run_dir) / "model.zip").exists()
 
 
 def _candidate_main(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> None:
@@ -129,22 +141,29 @@ def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[st
     run_dir = Path(run_dir)
     k, decide_at = race_settings(hp)
     n_total = int(hp["n_timesteps"])
-    stop_at = max(int(decide_at * n_total), 1)
+    full = decide_at >= 1.0
+    stop_at = n_total if full else max(int(decide_at * n_total), 1)
     race_file = run_dir / "race.yml"
     if race_file.exists():
         decision = yaml.safe_load(race_file.read_text())
     else:
         base_seed = int(run.get("race_seed", run["seed"]))
         seeds = [base_seed + i for i in range(k)]
-        # select_checkpoint stays: it runs only at the full length, so it never runs in the
-        # race, but a candidate continued with --resume ends like an ordinary run
+        # select_checkpoint stays: it runs only at the full length (in the candidate's own
+        # process when the race is decided there), and a candidate continued with --resume
+        # ends like an ordinary run
         cand_hp = {key: v for key, v in hp.items() if key != "seed_race"}
         dirs = [run_dir / "race" / f"seed_{s}" for s in seeds]
-        print(f"Seed race: seeds {', '.join(map(str, seeds))} train side by side to step "
-              f"{stop_at:,} of {n_total:,}; the one that lands more validation cases continues "
-              f"alone (agents/race.py)", flush=True)
+        if full:
+            print(f"Seed race: seeds {', '.join(map(str, seeds))} train side by side to the "
+                  f"end ({n_total:,} steps); the final policy that lands more validation cases "
+                  f"is the run's (agents/race.py)", flush=True)
+        else:
+            print(f"Seed race: seeds {', '.join(map(str, seeds))} train side by side to step "
+                  f"{stop_at:,} of {n_total:,}; the one that lands more validation cases "
+                  f"continues alone (agents/race.py)", flush=True)
         t0 = time.perf_counter()
-        _train_candidates(cand_hp, run, seeds, dirs, stop_at)
+        _train_candidates(cand_hp, run, seeds, dirs, None if full else stop_at)
         race_wall_s = time.perf_counter() - t0
         sel = hp.get("select_checkpoint") or {}
         n_states = int(sel.get("states", 100))
@@ -156,9 +175,11 @@ def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[st
                 raise RuntimeError(f"seed race: candidate {d} has no checkpoint at step "
                                    f">= {stop_at}")
             found.append((s, ck[0][1], ck[0][0]))
-        scores = score_candidates([(s, path) for s, path, _ in found], run["env"],
-                                  hp.get("env_kwargs"), hp.get("obs_features"), n_states,
-                                  val_seed, run.get("device", "cpu"), label="seed")
+        scores = _selected_scores(dirs, n_states, val_seed) if full else None
+        if scores is None:
+            scores = score_candidates([(s, path) for s, path, _ in found], run["env"],
+                                      hp.get("env_kwargs"), hp.get("obs_features"), n_states,
+                                      val_seed, run.get("device", "cpu"), label="seed")
         # the most landings; a tie goes to the earlier seed (the user's own first)
         best = max(range(k), key=lambda i: (scores[i]["success_rate"], -i))
         decision = {"seeds": seeds, "decide_at_steps": int(found[best][2]),
@@ -167,12 +188,12 @@ def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[st
                     "scores": [{"seed": s, "success_rate": r["success_rate"]}
                                for s, r in zip(seeds, scores, strict=True)]}
         write_text_atomic(race_file, yaml.safe_dump(decision, sort_keys=False))
-        print(f"Seed race: seed {seeds[best]} continues "
+        print(f"Seed race: seed {seeds[best]} {'wins' if full else 'continues'} "
               f"({100 * scores[best]['success_rate']:.1f} % of {n_states} validation cases; "
               + ", ".join(f"seed {s}: {100 * r['success_rate']:.1f} %"
                           for s, r in zip(seeds, scores, strict=True)) + ")", flush=True)
     chosen = int(decision["chosen_seed"])
-    _adopt(run_dir / "race" / f"seed_{chosen}", run_dir)
+    _adopt(run_dir / "race" / f"seed_{chosen}", run_dir, final=full)
     run = dict(run)
     run.setdefault("race_seed", int(decision["seeds"][0]))
     run["seed"] = chosen
@@ -180,10 +201,34 @@ def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[st
     return run
 
 
-def _adopt(cand: Path, run_dir: Path) -> None:
+def _selected_scores(dirs: list[Path], n_states: int, val_seed: int
+                     ) -> list[dict[str, Any]] | None:
+    """Each candidate's validation success from its own checkpoint selection (the chosen
+    checkpoint's, on the same cases), or None when one has no matching ``selection.yml``."""
+    out = []
+    for d in dirs:
+        f = d / "selection.yml"
+        sel = yaml.safe_load(f.read_text()) if f.exists() else None
+        if not sel or int(sel["validation_seed"]) != val_seed or \
+                int(sel["n_states"]) != n_states:
+            return None
+        chosen = [c for c in sel["scores"] if c["steps"] == sel["chosen_steps"]]
+        out.append({"success_rate": float(chosen[0]["success_rate"])})
+    return out
+
+
+def _adopt(cand: Path, run_dir: Path, final: bool = False) -> None:
     """Copy the winner's checkpoints, TensorBoard log and timing into the run (atomic rename of
-    the checkpoint folder; skipped when already there)."""
+    the checkpoint folder; skipped when already there); ``final``: also its final policy
+    (``model.zip``, ``vecnormalize.pkl``, ``selection.yml``), before the checkpoints, so that a
+    run whose checkpoints are there has its final policy too."""
     target = run_dir / "checkpoints"
+    if final and not target.exists():
+        for name in ("model.zip", "vecnormalize.pkl", "selection.yml"):
+            if (cand / name).exists():
+                tmp = run_dir / f"{name}.tmp"
+                shutil.copyfile(cand / name, tmp)
+                os.replace(tmp, run_dir / name)
     if not target.exists():
         tmp = run_dir / "checkpoints.tmp"
         shutil.rmtree(tmp, ignore_errors=True)
@@ -197,18 +242,24 @@ def _adopt(cand: Path, run_dir: Path) -> None:
 
 
 def _train_candidates(hp: dict[str, Any], run: dict[str, Any], seeds: list[int],
-                      dirs: list[Path], stop_at: int) -> None:
-    """Train every candidate to ``stop_at`` in its own process (one per core); a Ctrl-C or
-    SIGTERM checkpoints each and propagates as KeyboardInterrupt."""
+                      dirs: list[Path], stop_at: int | None) -> None:
+    """Train every candidate to ``stop_at`` (None: to the end, checkpoint selection included)
+    in its own process (one per core); a Ctrl-C or SIGTERM checkpoints each and propagates as
+    KeyboardInterrupt."""
     ctx = multiprocessing.get_context("spawn")
     procs = []
     for s, d in zip(seeds, dirs, strict=True):
         ck = checkpoints(d)
-        if ck and ck[0][0] >= stop_at:
+        if stop_at is not None and ck and ck[0][0] >= stop_at:
             continue  # finished before an interruption
+        if stop_at is None and ck and ck[0][0] >= int(hp["n_timesteps"]) and \
+                (not hp.get("select_checkpoint") or (d / "selection.yml").exists()):
+            continue
         d.mkdir(parents=True, exist_ok=True)
         cand_run = dict(run, seed=s, run_dir=str(d), stop_at_steps=stop_at, no_progress=True,
                         eval_states=0, no_eval=True)
+        if stop_at is None:
+            cand_run.pop("stop_at_steps")
         cand_run.pop("race_seed", None)
         write_text_atomic(d / "config.yml", yaml.safe_dump(hp, sort_keys=True))
         # stop_at_steps is handed to the child, not recorded: `train.py --resume <candidate>`

@@ -61,7 +61,7 @@ from agents.hyperparams import (
     load_hyperparams,
     parse_override,
 )
-from agents.race import race_pending, seed_race
+from agents.race import race_pending, race_trained_to_end, seed_race
 from agents.runs import (
     claim_run_dir,
     load_trained,
@@ -263,10 +263,12 @@ def main(argv: list[str] | None = None) -> int:
           f"config={run['config']}, seed={run['seed']})")
     try:
         if race_pending(hp, run_dir):
-            # a few seeds side by side to the decision step, then the winner alone
+            # a few seeds side by side to the decision step, then the winner alone (or, decided
+            # at the end, the winner's final policy is the run's)
             run = seed_race(hp, run, run_dir)
             resume = True
-        train(hp, run, run_dir, resume=resume, on_resumed=on_resumed)
+        if not race_trained_to_end(hp, run_dir):
+            train(hp, run, run_dir, resume=resume, on_resumed=on_resumed)
     except KeyboardInterrupt:
         if race_pending(hp, run_dir):
             print(f"\nInterrupted during the seed race; continue with: python train.py "

@@ -12,8 +12,10 @@ ENV_ID = "LunarPinpointLanding-v2"
 def test_race_settings_are_validated():
     assert rc.race_settings({}) is None
     assert rc.race_settings({"seed_race": {"candidates": 3, "decide_at": 0.3}}) == (3, 0.3)
+    assert rc.race_settings({"seed_race": {"candidates": 2, "decide_at": 1}}) == (2, 1.0)
     for bad, match in (({"candidates": 1}, "candidates"), ({"candidates": 2.5}, "candidates"),
-                       ({"decide_at": 1.0}, "decide_at"), ({"decide_at": "soon"}, "decide_at"),
+                       ({"decide_at": 1.5}, "decide_at"), ({"decide_at": 0}, "decide_at"),
+                       ({"decide_at": "soon"}, "decide_at"),
                        ({"seeds": 2}, "seeds")):
         with pytest.raises(ValueError, match=match):
             rc.race_settings({"seed_race": bad})
@@ -57,6 +59,56 @@ def test_the_seed_whose_checkpoint_lands_more_continues(tmp_path, monkeypatch, r
     assert rc.race_done(tmp_path)
     monkeypatch.setattr(sel, "score_candidates", None)  # decided: never scored again
     assert rc.seed_race(hp, out, tmp_path)["seed"] == want
+
+
+def test_a_race_decided_at_the_end_keeps_the_best_selected_policy(tmp_path, monkeypatch):
+    """decide_at 1: each candidate's own checkpoint selection scores it (nothing is scored
+    again), and the winner's final policy, not its last checkpoint, becomes the run's."""
+    import agents.selection as sel
+
+    hp = {"n_timesteps": 1000, "seed_race": {"candidates": 2, "decide_at": 1.0},
+          "select_checkpoint": {"states": 7}}
+    _fake_candidates(tmp_path, (15, 16), 1000)
+    for s, rates in ((15, (0.9, 0.97)), (16, (0.98, 0.2))):
+        d = tmp_path / "race" / f"seed_{s}"
+        (d / "model.zip").write_bytes(f"selected policy of seed {s}".encode())
+        (d / "vecnormalize.pkl").write_bytes(f"statistics of seed {s}".encode())
+        sel.write_selection(d, sel.VALIDATION_SEED, 7, "steps",
+                            [{"key": 900, "success_rate": rates[0], "fuel_mean_kg": 1.0},
+                             {"key": 1000, "success_rate": rates[1], "fuel_mean_kg": 1.0}],
+                            {"key": 900 if rates[0] > rates[1] else 1000})
+    monkeypatch.setattr(rc, "_train_candidates", lambda *a, **k: None)
+    monkeypatch.setattr(sel, "score_candidates", None)
+    out = rc.seed_race(hp, {"env": ENV_ID, "seed": 15}, tmp_path)
+    assert out["seed"] == 16
+    decision = yaml.safe_load((tmp_path / "race.yml").read_text())
+    assert [c["success_rate"] for c in decision["scores"]] == [0.97, 0.98]
+    assert (tmp_path / "model.zip").read_bytes() == b"selected policy of seed 16"
+    assert (tmp_path / "vecnormalize.pkl").read_bytes() == b"statistics of seed 16"
+    assert yaml.safe_load((tmp_path / "selection.yml").read_text())["chosen_steps"] == 900
+    assert rc.race_trained_to_end(hp, tmp_path)
+    assert not rc.race_trained_to_end(dict(hp, n_timesteps=2000), tmp_path)  # -n extends it
+
+
+def test_quick_race_to_the_end(tmp_path, capfd):
+    """decide_at 1: both quick candidates train to the end and select their checkpoints in
+    their own processes; the run adopts the winner's selected policy without training again."""
+    run_dir = tmp_path / "run"
+    assert tr.main(["--quick", "--env", ENV_ID, "--seed", "3", "--run-dir", str(run_dir),
+                    "--no-progress", "--no-eval", "--no-tensorboard",
+                    "--hyperparams", "seed_race={candidates: 2, decide_at: 1.0}",
+                    "n_timesteps=2048"]) == 0
+    out = capfd.readouterr().out
+    assert "[seed 3] selection: the checkpoint" in out and "[seed 4] selection" in out
+    assert "Trained" not in out.replace("[seed 3] Trained", "").replace("[seed 4] Trained", "")
+    decision = yaml.safe_load((run_dir / "race.yml").read_text())
+    winner = run_dir / "race" / f"seed_{decision['chosen_seed']}"
+    for name in ("model.zip", "vecnormalize.pkl", "selection.yml"):
+        assert (run_dir / name).read_bytes() == (winner / name).read_bytes()
+    model, _, _ = tr.load_trained(run_dir)
+    assert model.num_timesteps == 2048
+    assert yaml.safe_load((run_dir / "args.yml").read_text())["seed"] == \
+        decision["chosen_seed"]
 
 
 def test_a_candidate_short_of_the_decision_step_is_an_error(tmp_path, monkeypatch):
