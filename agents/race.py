@@ -14,9 +14,10 @@ and continues the winner alone (``--resume`` from its checkpoint: same schedules
 steps). ``decide_at: 1`` (the pinpoint entry since the seventh session) trains every candidate
 to the end, each with its own checkpoint selection in its own process, and the run adopts the
 winner's selected policy: a run alone uses one core, so the second candidate's last 30 % costs
-almost no wall time (raced runs alone: 13 min 10 s decided at 70 %; see docs/notes/issue-16.md
-for the run decided at the end), and the choice is made on the final policies instead of on a
-guess at 70 % (of nine races decided at 70 %, three chose a seed that ended at 88.3-93.1 %).
+little wall time (training and selection 800-811 s to the end, ~750 s decided at 70 %), and
+the choice is made on the final policies instead of on a guess at 70 % (`--seed 28` with the
+success bonus: seed 29, continued alone from 70 %, ended at 93.1 %; trained in one go it ends
+at 99.0 %; docs/notes/issue-16.md, "Seventh session").
 
 Layout: the candidates are full run directories ``<run>/race/seed_<s>`` (each can be resumed
 or evaluated alone); ``<run>/race.yml`` records the scores and the chosen seed; the winner's
