@@ -14,7 +14,7 @@ and continues the winner alone (``--resume`` from its checkpoint: same schedules
 steps). ``decide_at: 1`` (the pinpoint entry since the seventh session) trains every candidate
 to the end, each with its own checkpoint selection in its own process, and the run adopts the
 winner's selected policy: a run alone uses one core, so the second candidate's last 30 % costs
-little wall time (training and selection 800-811 s to the end, ~750 s decided at 70 %), and
+little wall time (training and selection 690-811 s to the end, ~750 s decided at 70 %), and
 the choice is made on the final policies instead of on a guess at 70 % (`--seed 28` with the
 success bonus: seed 29, continued alone from 70 %, ended at 93.1 %; trained in one go it ends
 at 99.0 %; docs/notes/issue-16.md, "Seventh session").
