@@ -41,6 +41,7 @@ from typing import Any
 import yaml
 
 from agents.runs import checkpoints, write_text_atomic
+from optimizers.common.checkpoint import atomic_write_bytes
 
 __all__ = ["race_done", "race_pending", "race_settings", "race_trained_to_end", "seed_race"]
 
@@ -83,9 +84,22 @@ def race_trained_to_end(hp: dict[str, Any], run_dir: Path) -> bool:
     settings = race_settings(hp)
     if settings is None or settings[1] < 1.0 or not race_done(run_dir):
         return False
+    return _reached(run_dir, int(hp["n_timesteps"])) and (Path(run_dir) / "model.zip").exists()
+
+
+def _reached(run_dir: Path, steps: int) -> bool:
+    """The newest checkpoint of ``run_dir`` is at ``steps`` or later."""
     ck = checkpoints(run_dir)
-    return bool(ck) and ck[0][0] >= int(hp["n_timesteps"]) and \
-        (Path(run_dir) / "model.zip").exists()
+    return bool(ck) and ck[0][0] >= steps
+
+
+def _candidate_done(cand: Path, hp: dict[str, Any], stop_at: int | None) -> bool:
+    """A candidate finished before an interruption: trained to ``stop_at`` or, to the end
+    (None), trained and its checkpoint selection written."""
+    if stop_at is not None:
+        return _reached(cand, stop_at)
+    return _reached(cand, int(hp["n_timesteps"])) and \
+        (not hp.get("select_checkpoint") or (cand / "selection.yml").exists())
 
 
 def _candidate_main(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> None:
@@ -227,9 +241,7 @@ def _adopt(cand: Path, run_dir: Path, final: bool = False) -> None:
     if final and not target.exists():
         for name in ("model.zip", "vecnormalize.pkl", "selection.yml"):
             if (cand / name).exists():
-                tmp = run_dir / f"{name}.tmp"
-                shutil.copyfile(cand / name, tmp)
-                os.replace(tmp, run_dir / name)
+                atomic_write_bytes(run_dir / name, (cand / name).read_bytes())
     if not target.exists():
         tmp = run_dir / "checkpoints.tmp"
         shutil.rmtree(tmp, ignore_errors=True)
@@ -250,23 +262,18 @@ def _train_candidates(hp: dict[str, Any], run: dict[str, Any], seeds: list[int],
     ctx = multiprocessing.get_context("spawn")
     procs = []
     for s, d in zip(seeds, dirs, strict=True):
-        ck = checkpoints(d)
-        if stop_at is not None and ck and ck[0][0] >= stop_at:
-            continue  # finished before an interruption
-        if stop_at is None and ck and ck[0][0] >= int(hp["n_timesteps"]) and \
-                (not hp.get("select_checkpoint") or (d / "selection.yml").exists()):
+        if _candidate_done(d, hp, stop_at):
             continue
         d.mkdir(parents=True, exist_ok=True)
-        cand_run = dict(run, seed=s, run_dir=str(d), stop_at_steps=stop_at, no_progress=True,
-                        eval_states=0, no_eval=True)
-        if stop_at is None:
-            cand_run.pop("stop_at_steps")
+        cand_run = dict(run, seed=s, run_dir=str(d), no_progress=True, eval_states=0,
+                        no_eval=True)
         cand_run.pop("race_seed", None)
         write_text_atomic(d / "config.yml", yaml.safe_dump(hp, sort_keys=True))
-        # stop_at_steps is handed to the child, not recorded: `train.py --resume <candidate>`
-        # continues a candidate (a loser, say) to the run's full length
-        recorded = {key: v for key, v in cand_run.items() if key != "stop_at_steps"}
-        write_text_atomic(d / "args.yml", yaml.safe_dump(recorded, sort_keys=True))
+        write_text_atomic(d / "args.yml", yaml.safe_dump(cand_run, sort_keys=True))
+        if stop_at is not None:
+            # handed to the child, not recorded: `train.py --resume <candidate>` continues a
+            # candidate (a loser, say) to the run's full length
+            cand_run["stop_at_steps"] = stop_at
         p = ctx.Process(target=_candidate_main, args=(hp, cand_run, str(d)),
                         name=f"seed-race-{s}")
         p.start()

@@ -50,6 +50,7 @@ import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
 
 from agents.features import feature_constants
+from lunar_env.validation import require_number
 
 __all__ = ["PotentialShaping", "resolve_success_bonus", "surface_speed_m_s"]
 
@@ -140,10 +141,9 @@ class PotentialShaping(VecEnvWrapper):
         phi_next = self.phi(obs)
         target = np.where(done, 0.0, phi_next)  # Φ(terminal) = 0; obs of a done env is a reset
         shaped = rew + (self.gamma * target - self._phi).astype(np.float32)
-        if self.success_bonus:
-            won = np.fromiter((d and bool(info.get("is_success")) for d, info in
-                               zip(done, infos, strict=True)), dtype=bool, count=len(infos))
-            shaped = shaped + np.float32(self.success_bonus) * won
+        if self.success_bonus and done.any():
+            won = [i for i in np.flatnonzero(done) if infos[i].get("is_success")]
+            shaped[won] += np.float32(self.success_bonus)
         self._phi = phi_next
         return obs, shaped.astype(np.float32), done, infos
 
@@ -162,7 +162,7 @@ def resolve_success_bonus(value: float | str | None, thresholds: dict[str, float
             raise ValueError(f"success_bonus={value!r}; allowed: 'auto', a number >= 0 or null")
         return float(np.log1p(thresholds["speed_m_s"])
                      + np.log1p(thresholds.get("miss_m", 0.0) / 100.0))
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) \
-            or value < 0:
+    b = require_number("success_bonus", value)
+    if not (np.isfinite(b) and b >= 0):
         raise ValueError(f"success_bonus={value!r} must be 'auto', a finite number >= 0 or null")
-    return float(value)
+    return b

@@ -90,14 +90,20 @@ def test_a_race_decided_at_the_end_keeps_the_best_selected_policy(tmp_path, monk
     assert not rc.race_trained_to_end(dict(hp, n_timesteps=2000), tmp_path)  # -n extends it
 
 
-def test_quick_race_to_the_end(tmp_path, capfd):
-    """decide_at 1: both quick candidates train to the end and select their checkpoints in
-    their own processes; the run adopts the winner's selected policy without training again."""
+def _quick_race(tmp_path, decide_at: float, n_timesteps: int):
+    """``train.py --quick`` on the pinpoint env with a race of seeds 3 and 4; the run dir."""
     run_dir = tmp_path / "run"
     assert tr.main(["--quick", "--env", ENV_ID, "--seed", "3", "--run-dir", str(run_dir),
                     "--no-progress", "--no-eval", "--no-tensorboard",
-                    "--hyperparams", "seed_race={candidates: 2, decide_at: 1.0}",
-                    "n_timesteps=2048"]) == 0
+                    "--hyperparams", f"seed_race={{candidates: 2, decide_at: {decide_at}}}",
+                    f"n_timesteps={n_timesteps}"]) == 0
+    return run_dir
+
+
+def test_quick_race_to_the_end(tmp_path, capfd):
+    """decide_at 1: both quick candidates train to the end and select their checkpoints in
+    their own processes; the run adopts the winner's selected policy without training again."""
+    run_dir = _quick_race(tmp_path, 1.0, 2048)
     out = capfd.readouterr().out
     assert "[seed 3] selection: the checkpoint" in out and "[seed 4] selection" in out
     assert "Trained" not in out.replace("[seed 3] Trained", "").replace("[seed 4] Trained", "")
@@ -124,11 +130,7 @@ def test_quick_race_end_to_end_and_its_resume(tmp_path, capfd):
     boundary, the discarded step rolled back), the winner continues to the end; re-deciding
     from the candidates' checkpoints (a race interrupted after training) gives the same seed
     without training again."""
-    run_dir = tmp_path / "run"
-    assert tr.main(["--quick", "--env", ENV_ID, "--seed", "3", "--run-dir", str(run_dir),
-                    "--no-progress", "--no-eval", "--no-tensorboard",
-                    "--hyperparams", "seed_race={candidates: 2, decide_at: 0.5}",
-                    "n_timesteps=4096"]) == 0
+    run_dir = _quick_race(tmp_path, 0.5, 4096)
     out = capfd.readouterr().out
     assert "[seed 3] step" in out and "[seed 4] step" in out
     decision = yaml.safe_load((run_dir / "race.yml").read_text())
