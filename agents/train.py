@@ -8,7 +8,7 @@
     python train.py --algo sac --env LunarPinpointLanding-v0 --seed 3
     python train.py -n 200000 --hyperparams n_steps=512 policy_kwargs.activation_fn=relu
     python train.py --resume runs/ppo/LunarSoftLanding-v0_1   # continue an interrupted run
-    python train.py --optimize --n-trials 40 -n 500000         # Optuna search (agents.optimize)
+    python train.py --optimize --n-trials 40 -n 500000         # Optuna search (agents.rl.search)
 
 Layout follows the RL Baselines3 Zoo: hyperparameters come from ``agents/hyperparams/<algo>.yml``
 keyed by env id (``--config quick`` / ``--quick`` selects the ``<env id>@quick`` profile), and
@@ -22,14 +22,15 @@ command-line flags override them. Each run directory ``<log-folder>/<algo>/<env 
 - ``evaluation/`` the comparison against the optimiser baselines (``agents.evaluate``).
 
 Agents-side additions selected by YAML keys of the entry (recorded in ``config.yml``):
-``curriculum`` (start states from optimal trajectories, :mod:`agents.curriculum`),
-``obs_features`` (derived inputs appended to the observation, :mod:`agents.features`; re-applied
-by :class:`agents.evaluate.SB3Policy` when a run is loaded) and ``reward_shaping``
-(potential-based, policy-invariant, training only, :mod:`agents.shaping`). The env's own
+``curriculum`` (start states from optimal trajectories, :mod:`agents.rl.curriculum`),
+``obs_features`` (derived inputs appended to the observation, :mod:`agents.common.features`;
+re-applied
+by :class:`agents.common.sb3_law.SB3Law` when a run is loaded) and ``reward_shaping``
+(potential-based, policy-invariant, training only, :mod:`agents.rl.shaping`). The env's own
 observation and reward are never changed.
 
 Training runs on the natively batched vector env (all landers stepped in one call of the dynamics
-core) through the SB3 adapter :func:`agents.vec_env.make_sb3_vec_env`, not on a
+core) through the SB3 adapter :func:`agents.common.vec_env.make_sb3_vec_env`, not on a
 ``SubprocVecEnv`` of single envs. Envs that are not ours (any other Gymnasium id) fall back to
 SB3's ``make_vec_env``.
 
@@ -54,15 +55,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.hyperparams import (
-    ALGOS,
-    apply_overrides,
-    default_hyperparams_path,
-    load_hyperparams,
-    parse_override,
-)
-from agents.race import race_pending, race_trained_to_end, seed_race
-from agents.runs import (
+from agents.common.runs import (
     claim_run_dir,
     load_trained,
     next_run_dir,
@@ -70,8 +63,16 @@ from agents.runs import (
     resumable_checkpoint,
     write_text_atomic,
 )
-from agents.runs import latest_checkpoint as latest_checkpoint  # re-export (0.1 API)
-from agents.training import DEFAULT_ENV_ID, make_training_env, train
+from agents.common.runs import latest_checkpoint as latest_checkpoint  # re-export (0.1 API)
+from agents.hyperparams import (
+    ALGOS,
+    apply_overrides,
+    default_hyperparams_path,
+    load_hyperparams,
+    parse_override,
+)
+from agents.rl.race import race_pending, race_trained_to_end, seed_race
+from agents.rl.training import DEFAULT_ENV_ID, make_training_env, train
 
 __all__ = ["main", "build_parser", "train", "make_training_env", "latest_checkpoint",
            "load_trained", "next_run_dir", "DEFAULT_ENV_ID"]
@@ -125,7 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--summary-every", type=int, default=None, metavar="STEPS",
                    help="env steps between console summary lines (default n_timesteps/20; "
                         "0: none)")
-    o = p.add_argument_group("hyperparameter search (Optuna on the executor; agents.optimize)")
+    o = p.add_argument_group("hyperparameter search (Optuna on the executor; agents.rl.search)")
     o.add_argument("--optimize", "--optimize-hyperparameters", "-optimize", action="store_true",
                    help="search PPO hyperparameters instead of training once; writes the best "
                         "as a YAML entry (<log-folder>/optimize/<env>_<k>/best.yml)")
@@ -230,7 +231,7 @@ def main(argv: list[str] | None = None) -> int:
 
         resume = True
     elif args.optimize:
-        from agents.optimize import optimize
+        from agents.rl.search import optimize
 
         hp, run = _resolve_args(args)
         try:
@@ -276,7 +277,7 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     n_eval = 0 if run.get("no_eval") else int(run.get("eval_states") or 0)
     if n_eval > 0:
-        from agents.evaluate import evaluate_run
+        from agents.evaluation.compare import evaluate_run
 
         evaluate_run(run_dir, n_states=n_eval, seed=int(run.get("eval_seed", 2026)),
                      n_expert_states=run.get("eval_expert_states"))

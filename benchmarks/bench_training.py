@@ -4,7 +4,8 @@ Both runs use the same PPO hyperparameters (the shipped ``LunarSoftLanding-v0`` 
 ``agents/hyperparams/ppo.yml``, or its ``@quick`` profile sizes with ``--quick``), the same
 number of envs and the same seed; the only difference is how the envs are stepped:
 
-- ``native``: :func:`agents.vec_env.make_sb3_vec_env` — all landers advanced in one call of the
+- ``native``: :func:`agents.common.vec_env.make_sb3_vec_env` — all landers advanced in one call of
+the
   compiled dynamics core (what ``train.py`` uses);
 - ``subproc``: SB3 ``SubprocVecEnv`` of ``gym.make(env_id)`` single envs (one process each,
   the usual way to parallelise Gymnasium envs for SB3).
@@ -91,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
     import lunar_env  # noqa: F401
-    from agents.vec_env import make_sb3_vec_env
+    from agents.common.vec_env import make_sb3_vec_env
 
     torch.set_num_threads(1)
     n_envs = args.n_envs or (8 if args.quick else None)

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from agents.curriculum import OptimalStartCurriculum
-from agents.vec_env import make_sb3_vec_env
+from agents.common.vec_env import make_sb3_vec_env
+from agents.rl.curriculum import OptimalStartCurriculum
 
 
 def test_curriculum_starts_on_optimal_trajectories_and_anneals():
@@ -40,40 +40,6 @@ def test_curriculum_rejects_bad_arguments():
     venv.close()
 
 
-def test_start_window_opens_late_and_widens_backwards():
-    venv = make_sb3_vec_env("LunarSoftLanding-v0", 32, seed=0, dt_s=5.0)
-    cur = OptimalStartCurriculum(venv, total_timesteps=3200, start_prob=1.0, anneal_fraction=1.0,
-                                 n_trajectories=4, seed=0, progress=False,
-                                 start_window={"initial_min_fraction": 0.8,
-                                               "widen_fraction": 0.5})
-    cur.reset()
-    n_pts = cur.pool_times.shape[1]
-    assert cur.current_min_fraction == pytest.approx(0.8)
-    # every first start lies in the last fifth of its optimal flight
-    assert np.all(cur.start_fraction >= np.floor(0.8 * n_pts) / n_pts)
-    cur.num_timesteps = 800   # a quarter of training: half-way through the widening
-    assert cur.current_min_fraction == pytest.approx(0.4)
-    cur.num_timesteps = 1600  # the whole window from widen_fraction on
-    assert cur.current_min_fraction == 0.0
-    cur.num_timesteps = 3000
-    assert cur.current_min_fraction == 0.0
-    cur.num_timesteps = 1600
-    idx = np.arange(32)
-    seen = []
-    for _ in range(20):
-        cur._restart(idx, np.zeros((32,) + cur.observation_space.shape))
-        seen.extend(cur.start_fraction)
-    assert np.nanmin(seen) < 0.2  # early starts are drawn again
-    for bad, match in (({"initial_min_fraction": 1.0, "widen_fraction": 0.5},
-                        "initial_min_fraction"),
-                       ({"initial_min_fraction": 0.5, "widen_fraction": 0.0}, "widen_fraction"),
-                       ({"initial_min_fraction": 0.5, "widen": 0.3}, "widen")):
-        with pytest.raises(ValueError, match=match):
-            OptimalStartCurriculum(venv, 100, n_trajectories=2, progress=False,
-                                   start_window=bad)
-    cur.close()
-
-
 def test_start_noise_perturbs_pinpoint_starts_off_the_optimal_trajectories():
     venv = make_sb3_vec_env("LunarPinpointLanding-v2", 64, seed=0, dt_s=2.0)
     cur = OptimalStartCurriculum(venv, total_timesteps=10_000, start_prob=1.0,
@@ -95,7 +61,7 @@ def test_start_noise_perturbs_pinpoint_starts_off_the_optimal_trajectories():
     assert 100.0 < np.mean(dp) < 220.0 and 1.0 < np.mean(dv) < 2.2
     cur.close()
     soft = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0)
-    with pytest.raises(ValueError, match="pinpoint"):
+    with pytest.raises(ValueError, match="start_noise is not available for the planar"):
         OptimalStartCurriculum(soft, 100, n_trajectories=2, progress=False,
                                start_noise={"position_m": 1.0})
     soft.close()
@@ -104,7 +70,7 @@ def test_start_noise_perturbs_pinpoint_starts_off_the_optimal_trajectories():
 def test_noise_anneal_sets_the_exploration_noise_on_a_line_to_the_end():
     from stable_baselines3 import PPO
 
-    from agents.training import noise_anneal_callback
+    from agents.rl.training import noise_anneal_callback
 
     venv = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0)
     model = PPO("MlpPolicy", venv, n_steps=8, batch_size=16, seed=0, device="cpu",

@@ -5,16 +5,17 @@ import pytest
 import yaml
 
 from agents import train as tr
-from agents.evaluate import SB3Policy, rollout
-from agents.features import (
+from agents.common.features import (
     FEATURE_WIDTHS,
     ObsFeatureWrapper,
     augment_observation,
     feature_constants,
     validate_features,
 )
-from agents.shaping import PotentialShaping, surface_speed_m_s
-from agents.vec_env import make_sb3_vec_env
+from agents.common.sb3_law import SB3Law
+from agents.common.vec_env import make_sb3_vec_env
+from agents.evaluation.compare import rollout
+from agents.rl.shaping import PotentialShaping, surface_speed_m_s
 
 ENV_ID = "LunarSoftLanding-v0"
 ALL = list(FEATURE_WIDTHS)
@@ -136,15 +137,15 @@ def test_feature_run_round_trips_through_save_load_evaluate(tmp_path):
     assert rc == 0
     hp = yaml.safe_load((run_dir / "config.yml").read_text())
     assert hp["obs_features"] == ["log_altitude", "stopping_ratio", "fuel_margin"]
-    pol = SB3Policy.from_path(run_dir)
+    pol = SB3Law.from_path(run_dir)
     assert pol.obs_features == hp["obs_features"]
     assert pol.model.observation_space.shape == (8,)
     env_kwargs = hp.get("env_kwargs")
     a = rollout(ENV_ID, pol, 3, seed=7, env_kwargs=env_kwargs, trace_cases=1)
-    b = rollout(ENV_ID, SB3Policy.from_path(run_dir / "model.zip"), 3, seed=7,
+    b = rollout(ENV_ID, SB3Law.from_path(run_dir / "model.zip"), 3, seed=7,
                 env_kwargs=env_kwargs, trace_cases=1)
     np.testing.assert_array_equal(a.fuel_used_kg, b.fuel_used_kg)
     assert np.isfinite(a.fuel_used_kg).all()
     # a policy without its features cannot be fed the raw observation
     with pytest.raises(ValueError):
-        rollout(ENV_ID, SB3Policy(pol.model, pol.vecnormalize), 1, seed=7, env_kwargs=env_kwargs)
+        rollout(ENV_ID, SB3Law(pol.model, pol.vecnormalize), 1, seed=7, env_kwargs=env_kwargs)

@@ -1,12 +1,13 @@
-"""Per-case optimum of LunarPinpointLanding-v0 (agents.pinpoint_optimum) and its evaluation row."""
+"""Per-case optimum of LunarPinpointLanding-v0 (agents.experts.pinpoint_optimum) and its evaluation
+row."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-import agents.pinpoint_optimum as po
-from agents.evaluate import _summary, initial_states, rollout
+import agents.experts.pinpoint_optimum as po
+from agents.evaluation.compare import _summary, initial_states, rollout
 
 ENV_ID = "LunarPinpointLanding-v0"
 
@@ -48,7 +49,7 @@ def test_optimum_from_env_states_is_cached_atomically(scenario, tmp_path, monkey
 
     # the open-loop replay of the optimum flies the same cases in the env, and the summary
     # reports fuel and final-time gaps against the per-case optimum
-    res = rollout(ENV_ID, po.PinpointOpenLoopPolicy(again), 2, 2026, {"dt_s": 0.5})
+    res = rollout(ENV_ID, po.PinpointOpenLoopLaw(again), 2, 2026, {"dt_s": 0.5})
     row = _summary(res, np.array([o.fuel_kg for o in again]), np.array([o.tf_s for o in again]))
     assert row["optimal_fuel_mean_kg"] == pytest.approx(np.mean([o.fuel_kg for o in again]))
     assert "final_time_gap_pct" in row
@@ -68,14 +69,14 @@ def test_bad_inputs(scenario, tmp_path):
 
 
 def test_pinpoint_features_decode_and_shaping():
-    from agents.features import (
+    from agents.common.features import (
         PINPOINT_FEATURE_WIDTHS,
         ObsFeatureWrapper,
         augment_observation,
         feature_constants,
     )
-    from agents.shaping import PotentialShaping, gate_speed_and_range
-    from agents.vec_env import make_sb3_vec_env
+    from agents.common.vec_env import make_sb3_vec_env
+    from agents.rl.shaping import PotentialShaping, gate_speed_and_range
     from lunar_env import dynamics as dyn
 
     venv = make_sb3_vec_env("LunarPinpointLanding-v1", 2, seed=0)
@@ -114,8 +115,8 @@ def test_pinpoint_features_decode_and_shaping():
 def test_success_bonus_is_paid_on_the_env_verdict_only():
     """success_bonus adds B to the reward of a step that ends a successful episode and nothing
     anywhere else; 'auto' is the env's terminal penalty at its verdict's boundary."""
-    from agents.shaping import PotentialShaping
-    from agents.vec_env import make_sb3_vec_env
+    from agents.common.vec_env import make_sb3_vec_env
+    from agents.rl.shaping import PotentialShaping
 
     def shaped(bonus):
         venv = make_sb3_vec_env("LunarPinpointLanding-v2", 3, seed=0)
@@ -148,7 +149,7 @@ def test_reference_profile_and_stop_point_features():
     import gymnasium as gym
 
     import lunar_env  # noqa: F401
-    from agents.features import augment_observation, feature_constants
+    from agents.common.features import augment_observation, feature_constants
     from optimizers.indirect.pinpoint_feedback import (
         PinpointFeedback,
         extremal_path,
@@ -240,7 +241,7 @@ def test_select_checkpoint_warns_when_no_checkpoint_lands(tmp_path, monkeypatch,
     nothing, and keep quiet for a run that lands."""
     import yaml
 
-    import agents.selection as sel
+    import agents.rl.selection as sel
 
     ck = tmp_path / "checkpoints"
     ck.mkdir()

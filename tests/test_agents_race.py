@@ -1,10 +1,11 @@
-"""Seed race (agents.race): candidates side by side to the decision step, the winner continues."""
+"""Seed race (agents.rl.race): candidates side by side to the decision step, the winner
+continues."""
 
 import pytest
 import yaml
 
-from agents import race as rc
 from agents import train as tr
+from agents.rl import race as rc
 
 ENV_ID = "LunarPinpointLanding-v2"
 
@@ -31,7 +32,7 @@ def _fake_candidates(run_dir, seeds, steps):
 @pytest.mark.parametrize("rates, chosen", [((0.0, 0.49), 1), ((0.3, 0.1), 0), ((0.0, 0.0), 0)])
 def test_the_seed_whose_checkpoint_lands_more_continues(tmp_path, monkeypatch, rates, chosen):
     """The decision is the env's verdict on the validation cases; a tie keeps the user's seed."""
-    import agents.selection as sel
+    import agents.rl.selection as sel
 
     hp = {"n_timesteps": 1000, "seed_race": {"candidates": 2, "decide_at": 0.35},
           "select_checkpoint": {"states": 7}}
@@ -64,7 +65,7 @@ def test_the_seed_whose_checkpoint_lands_more_continues(tmp_path, monkeypatch, r
 def test_a_race_decided_at_the_end_keeps_the_best_selected_policy(tmp_path, monkeypatch):
     """decide_at 1: each candidate's own checkpoint selection scores it (nothing is scored
     again), and the winner's final policy, not its last checkpoint, becomes the run's."""
-    import agents.selection as sel
+    import agents.rl.selection as sel
 
     hp = {"n_timesteps": 1000, "seed_race": {"candidates": 2, "decide_at": 1.0},
           "select_checkpoint": {"states": 7}}

@@ -6,7 +6,9 @@ import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 
 from agents import train as tr
-from agents.evaluate import SB3Policy, compare, markdown_table, rollout
+from agents.common.sb3_law import SB3Law
+from agents.evaluation.compare import compare, rollout
+from agents.evaluation.report import markdown_table
 
 ENV_ID = "LunarSoftLanding-v0"
 QUICK = ["--quick", "--no-progress", "--verbose", "0", "--torch-threads", "1"]
@@ -33,7 +35,7 @@ def test_quick_config_end_to_end(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "| policy |" in out and "Pontryagin open loop" in out
     # the reloaded policy flies the same cases as in the table
-    res = rollout(ENV_ID, SB3Policy.from_path(run_dir), 4, seed=2026,
+    res = rollout(ENV_ID, SB3Law.from_path(run_dir), 4, seed=2026,
                   env_kwargs=hp.get("env_kwargs"))
     table = (run_dir / "evaluation" / "comparison.md").read_text()
     row = next(line for line in table.splitlines() if line.startswith("| PPO"))
@@ -93,11 +95,11 @@ def test_seed_makes_a_run_repeatable(tmp_path):
 def test_evaluation_is_deterministic_and_cases_do_not_depend_on_batch(tmp_path):
     from stable_baselines3 import PPO
 
-    from agents.evaluate import initial_states
+    from agents.evaluation.compare import initial_states
 
     venv = tr.make_training_env(ENV_ID, 2, seed=0)
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", n_steps=64, batch_size=64)
-    pol = SB3Policy(model, None, "PPO-untrained")
+    pol = SB3Law(model, None, "PPO-untrained")
     a = rollout(ENV_ID, pol, 6, seed=11, trace_cases=1)
     b = rollout(ENV_ID, pol, 6, seed=11, trace_cases=1)
     for f in ("is_success", "touchdown_speed_m_s", "fuel_used_kg", "episode_time_s"):

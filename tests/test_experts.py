@@ -1,9 +1,9 @@
-"""The closed-loop re-planning expert (agents.experts.PontryaginExpert)."""
+"""The closed-loop re-planning expert (agents.experts.planar.PontryaginExpert)."""
 
 import numpy as np
 import pytest
 
-from agents.experts import (
+from agents.experts.planar import (
     STATUS_CONSTRAINED,
     STATUS_FALLBACK,
     STATUS_HOLD,

@@ -10,8 +10,10 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from agents import dataset as dsm  # noqa: E402
-from agents import imitation as im  # noqa: E402
+from agents.imitation import cli as im  # noqa: E402
+from agents.imitation import data as dsm_data  # noqa: E402
+from agents.imitation import dataset as dsm  # noqa: E402
+from agents.imitation.policy import build_model  # noqa: E402
 
 ENV_ID = "LunarSoftLanding-v0"
 
@@ -64,24 +66,24 @@ def test_dataset_samples_are_certified_and_in_env_spaces(small_dataset):
 
 def test_dataset_round_trip_and_version_check(small_dataset, tmp_path):
     path, ds = small_dataset
-    again = dsm.load_dataset(path)
-    assert again.meta["format_version"] == dsm.FORMAT_VERSION
+    again = dsm_data.load_dataset(path)
+    assert again.meta["format_version"] == dsm_data.FORMAT_VERSION
     assert again.meta["scenario"] == "zhu2007" and again.meta["env_id"] == ENV_ID
     assert again.meta["solver"]["name"] == "optimizers.pontryagin.solve_many"
     for k, v in ds.arrays.items():
         np.testing.assert_array_equal(again.arrays[k], v)
     # re-save and reload: identical
-    p2 = dsm.save_dataset(tmp_path / "copy.npz", again.meta, again.arrays)
-    np.testing.assert_array_equal(dsm.load_dataset(p2).actions, ds.actions)
+    p2 = dsm_data.save_dataset(tmp_path / "copy.npz", again.meta, again.arrays)
+    np.testing.assert_array_equal(dsm_data.load_dataset(p2).actions, ds.actions)
     # another format version is refused with a clear message
     meta = dict(again.meta)
     bad = tmp_path / "bad.npz"
     np.savez(bad, meta=np.array(json.dumps(dict(meta, format_version=999))), **again.arrays)
     with pytest.raises(ValueError, match="format_version"):
-        dsm.load_dataset(bad)
+        dsm_data.load_dataset(bad)
     np.savez(tmp_path / "nometa.npz", x=np.zeros(3))
     with pytest.raises(ValueError, match="meta"):
-        dsm.load_dataset(tmp_path / "nometa.npz")
+        dsm_data.load_dataset(tmp_path / "nometa.npz")
 
 
 def test_dataset_resume_skips_finished_shards(tmp_path):
@@ -106,7 +108,8 @@ def test_bc_dagger_end_to_end(small_dataset, tmp_path):
     import torch as th
     from stable_baselines3 import PPO
 
-    from agents.evaluate import SB3Policy, compare
+    from agents.common.sb3_law import SB3Law
+    from agents.evaluation.compare import compare
 
     path, ds = small_dataset
     bc_dir = tmp_path / "bc"
@@ -120,7 +123,7 @@ def test_bc_dagger_end_to_end(small_dataset, tmp_path):
         np.testing.assert_array_equal(model.policy.state_dict()[k].numpy(), v.numpy())
     pred, _ = model.predict(ds.observations[:500], deterministic=True)
     err_bc = float(np.sqrt(np.mean((pred - ds.actions[:500]) ** 2)))
-    fresh = im.build_model(ENV_ID, {}, {"net_arch": {"pi": [64, 64], "vf": [64, 64]},
+    fresh = build_model(ENV_ID, {}, {"net_arch": {"pi": [64, 64], "vf": [64, 64]},
                                         "activation_fn": "tanh"}, seed=0)
     p0, _ = fresh.predict(ds.observations[:500], deterministic=True)
     err0 = float(np.sqrt(np.mean((p0 - ds.actions[:500]) ** 2)))
@@ -147,7 +150,7 @@ def test_bc_dagger_end_to_end(small_dataset, tmp_path):
     assert im.main(["dagger", "--resume", str(dg_dir), "--no-progress"]) == 0
     model = PPO.load(dg_dir / "model.zip")
     # the same evaluation as the RL policies, on a few states
-    rep = compare(ENV_ID, [SB3Policy(model, None, name="DAgger")], n_states=3, seed=2026,
+    rep = compare(ENV_ID, [SB3Law(model, None, name="DAgger")], n_states=3, seed=2026,
                   open_loop=False, n_expert_states=0, progress=False)
     row = rep["rows"][0]
     assert row["policy"] == "DAgger" and row["n_cases"] == 3

@@ -16,7 +16,7 @@ ENV_ID = "LunarPinpointLanding-v2"
 
 @pytest.fixture(scope="module")
 def pinpoint_dataset(tmp_path_factory):
-    from agents.dataset import generate
+    from agents.imitation.dataset import generate
 
     root = tmp_path_factory.mktemp("pinpoint_imitation")
     ds = generate(root / "pp.npz", env_id=ENV_ID, n=2, seed=3, n_workers=1, shard_size=2,
@@ -69,8 +69,8 @@ def test_pinpoint_dataset_is_certified_by_the_env(pinpoint_dataset):
 
 
 def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, tmp_path):
-    import agents.imitation as im
-    from agents.evaluate import SB3Policy
+    import agents.imitation.cli as im
+    from agents.common.sb3_law import SB3Law
 
     root, _ = pinpoint_dataset
     path = root / "pp.npz"
@@ -80,7 +80,7 @@ def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, tmp_path):
                     "0"]) == 0
     hp = yaml.safe_load((bc_dir / "config.yml").read_text())
     assert "reference_profile" in hp["obs_features"] and "stop_point" in hp["obs_features"]
-    pol = SB3Policy.from_path(bc_dir)
+    pol = SB3Law.from_path(bc_dir)
     assert pol.obs_features == hp["obs_features"]
     assert pol.model.observation_space.shape == (31,)
 
@@ -106,14 +106,14 @@ def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, tmp_path):
     # CI version of the fine-tuning stage: the from_dagger profile starts PPO from the clone,
     # with the clone's input standardisation and raw observations
     import agents.train as tr
-    from agents.features import StandardizedInputs
+    from agents.common.features import StandardizedInputs
 
     ft_dir = tmp_path / "ft"
     assert tr.main(["--env", ENV_ID, "--config", "from_dagger", "--init-from", str(dg_dir),
                     "--run-dir", str(ft_dir), "--seed", "0", "--no-eval", "--no-progress",
                     "--no-tensorboard", "-n", "2048", "--hyperparams", "n_envs=2",
                     "n_steps=512", "batch_size=512", "critic_warmup_steps=1024"]) == 0
-    ft = SB3Policy.from_path(ft_dir)
+    ft = SB3Law.from_path(ft_dir)
     assert isinstance(ft.model.policy.features_extractor, StandardizedInputs)
     assert ft.vecnormalize is None or ft.vecnormalize.norm_obs is False
 
@@ -121,7 +121,8 @@ def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, tmp_path):
 def test_dagger_rollouts_mix_expert_and_policy(pinpoint_dataset, tmp_path):
     """β = 0: every roll-out is the policy's alone; β = 1: every roll-out starts with the
     expert (up to a random switch time), so none counts as policy-only."""
-    import agents.imitation as im
+    import agents.imitation.cli as im
+    import agents.imitation.labelling as lab_mod
 
     root, _ = pinpoint_dataset
     bc_dir = tmp_path / "bc"
@@ -129,11 +130,11 @@ def test_dagger_rollouts_mix_expert_and_policy(pinpoint_dataset, tmp_path):
                     "--run-dir", str(bc_dir), "--no-progress", "--no-tensorboard",
                     "--eval-states", "0"]) == 0
     hp = yaml.safe_load((bc_dir / "config.yml").read_text())
-    lab, roll = im.pinpoint_dagger_rollouts(bc_dir / "model.zip", ENV_ID, {}, 2, 11,
+    lab, roll = lab_mod.pinpoint_dagger_rollouts(bc_dir / "model.zip", ENV_ID, {}, 2, 11,
                                             hp["obs_features"], beta=0.0, progress=False)
     assert roll["rollout_policy_only_episodes"] == 2
     assert len(lab["obs"]) == len(lab["actions"]) > 10
-    lab1, roll1 = im.pinpoint_dagger_rollouts(bc_dir / "model.zip", ENV_ID, {}, 2, 11,
+    lab1, roll1 = lab_mod.pinpoint_dagger_rollouts(bc_dir / "model.zip", ENV_ID, {}, 2, 11,
                                               hp["obs_features"], beta=1.0, progress=False)
     assert len(lab1["obs"]) > 10
     # no policy-only episode: the rate is then over all roll-outs (documented fallback)

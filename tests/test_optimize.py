@@ -8,7 +8,7 @@ import pytest
 pytest.importorskip("optuna")
 
 from agents.hyperparams import load_hyperparams  # noqa: E402
-from agents.optimize import score  # noqa: E402
+from agents.rl.search import score  # noqa: E402
 from agents.train import main  # noqa: E402
 
 
@@ -39,7 +39,7 @@ def test_optimize_quick_writes_best_entry_and_resumes(tmp_path, capsys):
     assert table.count("COMPLETE") + table.count("PRUNED") == 2
     import optuna
 
-    from agents.optimize import make_storage
+    from agents.rl.search import make_storage
 
     study = optuna.load_study(study_name="LunarSoftLanding-v0-ppo",
                               storage=make_storage(str(out / "study.journal")))

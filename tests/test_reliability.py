@@ -234,7 +234,7 @@ def _alive(pid: int) -> bool:
 _RUN_DIR_WORKER = """
     import os, sys, time
     from pathlib import Path
-    from agents.runs import next_run_dir, write_text_atomic
+    from agents.common.runs import next_run_dir, write_text_atomic
     folder, start = sys.argv[1], float(sys.argv[2])
     while time.time() < start:
         pass
@@ -262,11 +262,11 @@ def test_concurrent_processes_never_share_a_run_directory(tmp_path):
 
 
 def test_explicit_run_dir_is_claimed_by_one_process(tmp_path):
-    from agents.runs import claim_run_dir
+    from agents.common.runs import claim_run_dir
 
     code = """
         import sys, time
-        from agents.runs import claim_run_dir
+        from agents.common.runs import claim_run_dir
         start = float(sys.argv[2])
         while time.time() < start:
             pass
@@ -323,7 +323,7 @@ def _resume(run_dir, *extra):
 
 
 def _steps_of(run_dir) -> int:
-    from agents.runs import load_trained
+    from agents.common.runs import load_trained
 
     return int(load_trained(run_dir / "model.zip")[0].num_timesteps)
 
@@ -413,7 +413,7 @@ def _kill_and_resume_training(tmp_path, seed: int, n: int, rng: random.Random):
 
 
 def _compare_with_uninterrupted(run_dir, ref_dir):
-    from agents.runs import load_trained
+    from agents.common.runs import load_trained
 
     m, vn, _ = load_trained(run_dir / "model.zip")
     r, rvn, _ = load_trained(ref_dir / "model.zip")
@@ -479,7 +479,7 @@ def test_concurrent_training_runs_slow(tmp_path, trial):
 
 
 def _dataset_arrays(path):
-    from agents.dataset import load_dataset
+    from agents.imitation.data import load_dataset
 
     ds = load_dataset(path)
     return {k: v for k, v in ds.arrays.items() if k not in ("solve_wall_s",)}
@@ -494,7 +494,7 @@ def _assert_same_dataset(a, b):
 
 @pytest.fixture(scope="module")
 def reference_dataset(tmp_path_factory):
-    from agents.dataset import generate
+    from agents.imitation.dataset import generate
 
     out = tmp_path_factory.mktemp("ds") / "ref.npz"
     generate(out, n=3, shard_size=1, n_workers=1, progress=False, n_steps=200)
@@ -502,7 +502,8 @@ def reference_dataset(tmp_path_factory):
 
 
 def test_damaged_dataset_shard_is_named_and_solved_again(reference_dataset, tmp_path, capsys):
-    from agents.dataset import generate, load_dataset
+    from agents.imitation.data import load_dataset
+    from agents.imitation.dataset import generate
 
     out = tmp_path / "d.npz"
     generate(out, n=3, shard_size=1, n_workers=1, progress=False, n_steps=200, max_shards=2)
@@ -528,7 +529,7 @@ _DATASET_CLI = """
 
 
 def _kill_and_resume_dataset(tmp_path, reference, n, rng):
-    from agents.dataset import generate
+    from agents.imitation.dataset import generate
 
     out = tmp_path / "killed.npz"
     proc = _python(_DATASET_CLI, "--n", str(n), "--shard-size", "1", "--workers", "2",
@@ -568,7 +569,7 @@ def test_dataset_killed_at_a_random_point_resumes(reference_dataset, tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("trial", range(3))
 def test_dataset_killed_at_random_points_slow(tmp_path, trial):
-    from agents.dataset import generate
+    from agents.imitation.dataset import generate
 
     ref = tmp_path / "ref.npz"
     generate(ref, n=8, shard_size=1, n_workers=1, progress=False, n_steps=200)

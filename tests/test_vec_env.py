@@ -99,7 +99,7 @@ def test_sb3_adapter_same_step_reset_and_ppo():
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-    from agents.vec_env import LanderSB3VecEnv, make_sb3_vec_env
+    from agents.common.vec_env import LanderSB3VecEnv, make_sb3_vec_env
 
     sb3_check_env(gym.make("LunarSoftLanding-v0").unwrapped, warn=True)
     venv = make_sb3_vec_env("LunarSoftLanding-v0", n_envs=3, seed=9, time_limit_s=15.0)
@@ -126,7 +126,7 @@ def test_sb3_adapter_same_step_reset_and_ppo():
 
 
 def test_sb3_adapter_pinpoint_terminal_info():
-    from agents.vec_env import make_sb3_vec_env
+    from agents.common.vec_env import make_sb3_vec_env
 
     venv = make_sb3_vec_env("lunar_env:LunarPinpointLanding-v0", n_envs=2, seed=1,
                             time_limit_s=3.0)

@@ -33,7 +33,7 @@ Python objects are given by name and resolved from a fixed table:
 Keys that are not algorithm arguments (``n_envs``, ``n_timesteps``, ``policy``, ``normalize``,
 ``noise_type``, ``noise_std``, ``env_kwargs``, ``curriculum``, ``obs_features``,
 ``reward_shaping``) are taken out before the
-algorithm is built. ``curriculum`` is a mapping of :class:`agents.curriculum.
+algorithm is built. ``curriculum`` is a mapping of :class:`agents.rl.curriculum.
 OptimalStartCurriculum` arguments (``start_prob``, ``anneal_fraction``, ``n_trajectories``,
 ...), or absent.
 """

@@ -23,7 +23,7 @@ gate between nodes either.
 
 :class:`PinpointOptimum` holds the solution as the shooting's node controls (piecewise linear in
 time, exactly the law the optimiser optimised) and the replayed states at the nodes, enough for
-open-loop replays, start-state curricula and re-planning warm starts without re-solving.
+open-loop replays and warm starts without re-solving.
 """
 
 from __future__ import annotations
@@ -39,9 +39,10 @@ from typing import Any
 
 import numpy as np
 
+from agents.common.law import GuidanceLaw, Navigation
+
 __all__ = ["PinpointOptimum", "solve_case", "pinpoint_optima", "default_cache_dir", "env_ocp",
-           "PinpointOpenLoopPolicy", "PinpointReplanningPolicy", "replan", "replan_ocp",
-           "CACHE_FORMAT"]
+           "PinpointOpenLoopLaw", "CACHE_FORMAT"]
 
 #: bumped whenever the stored content or the solver pipeline changes (invalidates the cache)
 CACHE_FORMAT = 3
@@ -345,153 +346,45 @@ def _last_success(results: list, order: np.ndarray) -> PinpointOptimum | None:
     return None
 
 
-# ----------------------------------------------------------------------------- policy
+# ----------------------------------------------------------------------------- law
 
 
-class PinpointOpenLoopPolicy:
+class PinpointOpenLoopLaw(GuidanceLaw):
     """Replay of each case's optimal (α, β)(t), averaged over every env step (held after tf).
+    A law of the clock alone: it reads nothing of the navigation solution.
 
     Cases whose solve failed fly the nominal braking attitude (α = 0, β = 180°) and are
     reported like any other case.
+
+    Parameters
+    ----------
+    optima : list of PinpointOptimum
+        One per case (indexed by case id).
+    t_offset_s : array_like, optional
+        Per-case episode time at which each plan starts (mid-flight plans; default 0).
     """
 
     name = "optimum, open loop"
 
     def __init__(self, optima: list[PinpointOptimum], t_offset_s=None) -> None:
         self.optima = list(optima)
-        #: per-case episode time at which each law starts (mid-flight plans; default 0)
         self.t_offset_s = (np.zeros(len(self.optima)) if t_offset_s is None
                            else np.asarray(t_offset_s, dtype=np.float64).reshape(-1))
         self._ids = np.zeros(0, dtype=int)
 
-    def reset(self, venv, case_ids: np.ndarray) -> None:
+    def reset(self, computer, case_ids: np.ndarray) -> None:
+        super().reset(computer, case_ids)
         self._ids = np.asarray(case_ids)
 
-    def act(self, obs: np.ndarray, venv) -> np.ndarray:
+    def act(self, nav: Navigation) -> np.ndarray:
         from lunar_env.envs.pinpoint_landing import action_from_angles
 
-        core = getattr(venv, "unwrapped", venv)
-        sc = core.scenario
-        t = np.asarray(core.t_s, dtype=np.float64)
-        dt = float(core.dt_s)
+        sc = self.computer.scenario
+        dt = self.computer.dt_s
         ang = np.tile([0.0, np.pi], (len(self._ids), 1))
         for k, cid in enumerate(self._ids):
             opt = self.optima[cid]
             if opt.success:
-                ang[k] = opt.mean_angles(float(t[k]) - self.t_offset_s[cid], dt)
-        return action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
-                                  sc.beta_bounds_rad).astype(np.float32)
-
-
-# ----------------------------------------------------------------------------- re-planning
-
-
-def replan_ocp(scenario):
-    """The env's problem from a mid-flight state: :func:`env_ocp` with the final-time lower
-    bound relaxed to 1 s ([001]'s 300 s bound is about the whole descent, not the time to go)."""
-    import dataclasses
-
-    from optimizers.problems.pinpoint import PinpointOCP
-
-    key = ("replan", id(scenario))
-    if key not in _SOLVER_CACHE:
-        sc = dataclasses.replace(scenario, tf_bounds_s=(1.0, scenario.tf_bounds_s[1]))
-        _SOLVER_CACHE[key] = (sc, PinpointOCP(sc, min_altitude_m=scenario.target.altitude_m,
-                                              **GATE_CLEARANCE))
-    return _SOLVER_CACHE[key][1]
-
-
-def replan(scenario, state_nd: np.ndarray, plan: PinpointOptimum | None,
-           elapsed_s: float, fallback: bool = True, max_iter: int | None = None
-           ) -> PinpointOptimum:
-    """Re-solve from the current state (normalised, (7,)), warm-started from ``plan`` advanced
-    by ``elapsed_s`` (its node controls shifted, the nodes already flown dropped); the full
-    serial strategy from the nominal guess if the warm shooting fails and ``fallback``
-    (measured on perturbed mid-flight states: that fallback rarely converges there and costs
-    10-25 s, so dataset restarts skip it). ``max_iter`` caps IPOPT's iterations (default the
-    solver's 300; a converging warm re-plan takes ~10-60, a failing one runs to the cap)."""
-    from optimizers.transcription.serial import ControlGuess, get_solver
-
-    opts = dict(SOLVER_OPTIONS, **({} if max_iter is None else {"max_iter": int(max_iter)}))
-    solver = get_solver(replan_ocp(scenario), **opts)
-    x0 = np.asarray(state_nd, dtype=np.float64).reshape(7)
-    t_ref = solver.ocp.scaling.time_s
-    t0 = time.perf_counter()
-    if plan is not None and plan.success and plan.tf_s - elapsed_s > 1.0:
-        t = plan.t_nodes_s - elapsed_s
-        keep = t > 0
-        t_new = np.concatenate([[0.0], t[keep]])
-        u_new = np.vstack([plan.angles_at(elapsed_s)[None], plan.controls_rad[keep]])
-        guess = ControlGuess((plan.tf_s - elapsed_s) / t_ref, t_new / t_ref, u_new)
-        res = solver.solve_shooting_only(guess, initial_state=x0)
-        if res.success or not fallback:
-            return _from_result(res, solver, x0, time.perf_counter() - t0)
-    res = solver.solve(initial_state=x0)
-    return _from_result(res, solver, x0, time.perf_counter() - t0)
-
-
-class PinpointReplanningPolicy:
-    """Closed-loop re-planning expert (model-predictive): every ``replan_every_s`` the optimum
-    is re-solved from the lander's current state by direct shooting warm-started from the
-    previous plan (:func:`replan`), and the plan is flown in between (its law averaged over
-    each env step). Each case starts from its per-case optimum (no solve at t = 0).
-
-    Decisions: re-planning stops when less than ``hold_s`` of the plan is left (shooting is
-    ill-conditioned as the time to go vanishes; the last plan is flown open loop); a failed
-    re-plan keeps the previous plan. ``n_replans`` and ``n_failed`` count the solves.
-
-    Parameters
-    ----------
-    optima : list of PinpointOptimum
-        Per-case optima (indexed by case id), the first plan of each case.
-    replan_every_s : float
-    hold_s : float
-    """
-
-    name = "re-planning expert"
-
-    def __init__(self, optima: list[PinpointOptimum], replan_every_s: float = 10.0,
-                 hold_s: float = 15.0) -> None:
-        if not (np.isfinite(replan_every_s) and replan_every_s > 0):
-            raise ValueError(f"replan_every_s = {replan_every_s!r} must be finite and > 0")
-        self.optima = list(optima)
-        self.replan_every_s = float(replan_every_s)
-        self.hold_s = float(hold_s)
-        self.active: np.ndarray | None = None
-        self.n_replans = 0
-        self.n_failed = 0
-        self.name = f"re-planning expert (every {self.replan_every_s:g} s)"
-
-    def reset(self, venv, case_ids: np.ndarray) -> None:
-        self._ids = np.asarray(case_ids)
-        self.plans = [self.optima[c] for c in self._ids]
-        self.plan_t0 = np.zeros(len(self._ids))
-        self.active = None
-
-    def act(self, obs: np.ndarray, venv) -> np.ndarray:
-        from lunar_env.envs.pinpoint_landing import action_from_angles
-
-        core = getattr(venv, "unwrapped", venv)
-        sc = core.scenario
-        t = np.asarray(core.t_s, dtype=np.float64)
-        y = np.asarray(core.state_nd)
-        dt = float(core.dt_s)
-        ang = np.tile([0.0, np.pi], (len(self._ids), 1))
-        for k in range(len(self._ids)):
-            if self.active is not None and not self.active[k]:
-                continue
-            plan = self.plans[k]
-            since = t[k] - self.plan_t0[k]
-            if plan.success and since >= self.replan_every_s - 1e-9 \
-                    and plan.tf_s - since > self.hold_s:
-                new = replan(sc, y[k], plan, since)
-                self.n_replans += 1
-                if new.success:
-                    self.plans[k], self.plan_t0[k] = new, t[k]
-                    plan, since = new, 0.0
-                else:
-                    self.n_failed += 1
-            if plan.success:
-                ang[k] = plan.mean_angles(since, dt)
+                ang[k] = opt.mean_angles(float(nav.t_s[k]) - self.t_offset_s[cid], dt)
         return action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
                                   sc.beta_bounds_rad).astype(np.float32)

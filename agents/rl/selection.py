@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.runs import write_text_atomic
+from agents.common.runs import write_text_atomic
 
 __all__ = ["score_candidates", "select_checkpoint", "write_selection"]
 
@@ -33,17 +33,18 @@ def score_candidates(candidates: list[tuple[int, Path]], env_id: str,
                      label: str = "checkpoint") -> list[dict[str, Any]]:
     """Landings of each candidate ``(key, model .zip)`` on the validation cases; one dict per
     candidate (``key``, ``model``, ``vecnormalize``: the statistics file found for it by
-    :func:`agents.runs.load_trained` or None, ``success_rate``, ``fuel_mean_kg`` of its
+    :func:`agents.common.runs.load_trained` or None, ``success_rate``, ``fuel_mean_kg`` of its
     landings), in the candidates' order. Prints one line per candidate."""
-    from agents.evaluate import SB3Policy, rollout
-    from agents.runs import load_trained
+    from agents.common.runs import load_trained
+    from agents.common.sb3_law import SB3Law
+    from agents.evaluation.compare import rollout
 
     if int(n_states) < 1:
         raise ValueError(f"n_states={n_states!r} must be >= 1")
     scores = []
     for key, model_path in candidates:
         model, vn_path, _ = load_trained(model_path, device=device)
-        res = rollout(env_id, SB3Policy(model, vn_path, name=f"{label} {key}",
+        res = rollout(env_id, SB3Law(model, vn_path, name=f"{label} {key}",
                                         obs_features=obs_features),
                       int(n_states), int(seed), env_kwargs, trace_cases=0)
         ok = res.is_success
@@ -86,7 +87,7 @@ def select_checkpoint(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | N
     a warning on stderr says so before any evaluation runs: the run did not learn to land, and
     no choice of checkpoint mends that (issue 16: two pinpoint PPO seeds of fourteen land 0 % on
     every checkpoint). ``selection.yml`` records the flag."""
-    from agents.runs import checkpoints
+    from agents.common.runs import checkpoints
     from lunar_env.validation import require_number
 
     if int(last) < 1:

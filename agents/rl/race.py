@@ -5,7 +5,7 @@ draw. Of fourteen seeds of the 9e6 entry trained alone, eleven land 95-100 % of 
 states; two never learn to land (0 %) and one lands 77.5 %. The default run therefore trains
 seeds ``seed, seed + 1`` in two processes, one per core (each at ~85-95 % of the speed of one
 run alone: a run uses one core), and keeps the one whose policy lands more of the held-out
-validation cases (:data:`agents.selection.VALIDATION_SEED`.., never the evaluation's). This is
+validation cases (:data:`agents.rl.selection.VALIDATION_SEED`.., never the evaluation's). This is
 successive halving over seeds (Jamieson & Talwalkar 2016; Li et al. 2018, Hyperband), decided
 by the env's own verdict.
 
@@ -40,7 +40,7 @@ from typing import Any
 
 import yaml
 
-from agents.runs import checkpoints, write_text_atomic
+from agents.common.runs import checkpoints, write_text_atomic
 from optimizers.common.checkpoint import atomic_write_bytes
 
 __all__ = ["race_done", "race_pending", "race_settings", "race_trained_to_end", "seed_race"]
@@ -104,8 +104,8 @@ def _candidate_done(cand: Path, hp: dict[str, Any], stop_at: int | None) -> bool
 
 def _candidate_main(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> None:
     """Child process: train one candidate to its stop step (or resume it there)."""
-    from agents.runs import resumable_checkpoint
-    from agents.training import train
+    from agents.common.runs import resumable_checkpoint
+    from agents.rl.training import train
 
     prefix = f"[seed {run['seed']}] "
     sys.stdout = _Prefixed(sys.stdout, prefix)
@@ -151,7 +151,7 @@ def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[st
     """Run (or finish) the seed race of ``run_dir``; returns the run arguments with the chosen
     seed, ``args.yml`` rewritten and the winner's checkpoints in ``run_dir/checkpoints``, ready
     for ``train(hp, run, run_dir, resume=True)``. Idempotent once decided."""
-    from agents.selection import VALIDATION_SEED, score_candidates
+    from agents.rl.selection import VALIDATION_SEED, score_candidates
 
     run_dir = Path(run_dir)
     k, decide_at = race_settings(hp)
@@ -172,11 +172,11 @@ def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[st
         if full:
             print(f"Seed race: seeds {', '.join(map(str, seeds))} train side by side to the "
                   f"end ({n_total:,} steps); the final policy that lands more validation cases "
-                  f"is the run's (agents/race.py)", flush=True)
+                  f"is the run's (agents/rl/race.py)", flush=True)
         else:
             print(f"Seed race: seeds {', '.join(map(str, seeds))} train side by side to step "
                   f"{stop_at:,} of {n_total:,}; the one that lands more validation cases "
-                  f"continues alone (agents/race.py)", flush=True)
+                  f"continues alone (agents/rl/race.py)", flush=True)
         t0 = time.perf_counter()
         _train_candidates(cand_hp, run, seeds, dirs, None if full else stop_at)
         race_wall_s = time.perf_counter() - t0
@@ -280,7 +280,7 @@ def _train_candidates(hp: dict[str, Any], run: dict[str, Any], seeds: list[int],
         procs.append((s, d, p))
 
     def _on_sigterm(signum, frame):
-        for _, _, p in procs:  # each checkpoints on SIGTERM (agents.training.train)
+        for _, _, p in procs:  # each checkpoints on SIGTERM (agents.rl.training.train)
             if p.is_alive():
                 os.kill(p.pid, signal.SIGTERM)
         raise KeyboardInterrupt

@@ -7,7 +7,7 @@ observation of its next episode; the last one is in ``info["terminal_observation
 ``info["TimeLimit.truncated"]``. Wrap it in ``VecMonitor`` for episode statistics and in
 ``VecNormalize`` as usual.
 
->>> from agents.vec_env import make_sb3_vec_env
+>>> from agents.common.vec_env import make_sb3_vec_env
 >>> venv = make_sb3_vec_env("LunarSoftLanding-v0", n_envs=4, seed=0)
 >>> venv.reset().shape
 (4, 5)

@@ -9,7 +9,7 @@
 
 Each trial trains PPO with the shipped entry of the env (``agents/hyperparams/ppo.yml``, the
 ``--config``/``--quick`` profile, ``--hyperparams`` overrides) with the sampled values merged
-over it, through :func:`agents.training.train` itself (same curriculum, features, shaping,
+over it, through :func:`agents.rl.training.train` itself (same curriculum, features, shaping,
 normalisation), for ``n_timesteps`` (``-n``) steps. ``--n-evaluations`` times during training
 the deterministic policy flies ``--eval-states`` dispersed initial states (seed
 ``--tune-seed``, not the final evaluation's 2026) and the score is reported to Optuna; the
@@ -149,9 +149,10 @@ def run_trial(storage_url: str, study_name: str, index: int, hp_base: dict, run_
     import optuna
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from agents.evaluate import SB3Policy, rollout
+    from agents.common.sb3_law import SB3Law
+    from agents.evaluation.compare import rollout
     from agents.hyperparams import apply_overrides
-    from agents.training import train
+    from agents.rl.training import train
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     seed = int(run_base["seed"]) + int(index)
@@ -171,7 +172,7 @@ def run_trial(storage_url: str, study_name: str, index: int, hp_base: dict, run_
     env_id = run["env"]
 
     def evaluate(model) -> float:
-        policy = SB3Policy(model, model.get_vec_normalize_env(),
+        policy = SB3Law(model, model.get_vec_normalize_env(),
                            obs_features=hp.get("obs_features"))
         res = rollout(env_id, policy, int(search["eval_states"]), _TUNE_SEED,
                       hp.get("env_kwargs"), trace_cases=0)
@@ -219,7 +220,7 @@ def best_entry(env_id: str, hp: dict, trial: dict, search: dict) -> str:
     """The best trial's configuration as a Zoo YAML entry keyed by ``env_id`` (with a comment
     saying where it came from)."""
     head = (f"# train.py --optimize: best of {search['n_trials']} trials (trial "
-            f"{trial['number']}, score {trial['value']:.4f} (agents.optimize.score) on "
+            f"{trial['number']}, score {trial['value']:.4f} (agents.rl.search.score) on "
             f"{search['eval_states']} states, seed {_TUNE_SEED}, {hp['n_timesteps']} steps)\n")
     return head + yaml.safe_dump({env_id: hp}, sort_keys=True)
 
@@ -243,7 +244,7 @@ def optimize(hp: dict, run: dict, *, n_trials: int, sampler: str = "tpe",
     except ImportError:
         raise ImportError("train.py --optimize needs Optuna: pip install -e \".[optuna]\"") \
             from None
-    from agents.runs import next_run_dir, write_text_atomic
+    from agents.common.runs import next_run_dir, write_text_atomic
     from optimizers.common.executor import ResultStore, Task, TaskKey, get_executor, run_tasks
 
     if run["algo"] != "ppo":

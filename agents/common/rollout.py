@@ -1,8 +1,9 @@
 """The one vector-env rollout loop of agents/ (evaluation, imitation, dataset replays).
 
 :func:`fly` steps a natively batched lander vector env (``gym.make_vec(...,
-vectorization_mode="vector_entry_point")``) with a batched action function until every case has
-ended once, and returns the per-case outcome (:class:`Rollout`) read from the env's ``info``
+vectorization_mode="vector_entry_point")``) with a guidance law (:mod:`agents.common.law`)
+until every case has ended once, and returns the per-case outcome (:class:`Rollout`) read from the
+env's ``info``
 (success, touchdown speed, miss distance, fuel, time), with per-case histories of the recorded
 cases. Case ``i`` is sub-env ``i``: reset with ``seed + i`` (Gymnasium's vector convention), or
 pinned by ``reset_options`` (e.g. ``{"state_si": rows}``).
@@ -12,11 +13,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from agents.common.law import FlightComputer, GuidanceLaw, Navigation, Truth, law_label
 
 __all__ = ["Rollout", "fly", "make_vec", "vector_info"]
 
@@ -60,19 +63,32 @@ class Rollout:
     records: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
 
 
-def fly(env_id: str, act: Callable[[np.ndarray, Any, np.ndarray], np.ndarray], n: int, *,
+def _navigation(core, obs: np.ndarray, active: np.ndarray, privileged: bool
+                ) -> tuple[Navigation, Truth | None]:
+    """The navigation solution the env gives its flight computer (and the truth, for a
+    privileged law only). The envs have no navigation errors yet: the navigation solution is
+    the simulator's state, read here and nowhere else in the loop."""
+    state = np.asarray(core.state_nd)
+    t_s = np.asarray(core.t_s, dtype=np.float64)
+    nav = Navigation(obs=obs, state_nd=state, t_s=t_s, active=active.copy())
+    return nav, (Truth(state_nd=state, t_s=t_s) if privileged else None)
+
+
+def fly(env_id: str, law: GuidanceLaw, n: int, *,
         seed: int | None = None, env_kwargs: dict[str, Any] | None = None,
         reset_options: dict[str, Any] | None = None, record: Iterable[int] = (),
-        record_final: bool = False, max_steps: int | None = None,
-        on_reset: Callable[[Any], None] | None = None, name: str = "policy") -> Rollout:
-    """Fly ``n`` cases until each has ended once.
+        record_final: bool = False, max_steps: int | None = None) -> Rollout:
+    """Fly ``law`` on ``n`` cases until each has ended once.
+
+    The law is reset with the env's :class:`~agents.common.law.FlightComputer` and case ids
+    ``0..n-1``, then asked once per decision with the landers' :class:`~agents.common.law.
+    Navigation` (and, for a :class:`~agents.common.law.PrivilegedLaw` only, the
+    :class:`~agents.common.law.Truth`).
 
     Parameters
     ----------
     env_id : str
-    act : callable
-        ``act(obs (n, n_obs), venv, active (n,) bool) -> actions (n, n_act)``: one batched
-        decision for every lander (actions of finished landers are ignored).
+    law : GuidanceLaw
     n : int
     seed : int, optional
         Case i is sub-env i seeded ``seed + i``.
@@ -85,15 +101,11 @@ def fly(env_id: str, act: Callable[[np.ndarray, Any, np.ndarray], np.ndarray], n
         Also record each recorded case's final state (before the autoreset).
     max_steps : int, optional
         Safety bound on vector steps (default: the env's time limit / dt + 10).
-    on_reset : callable, optional
-        ``on_reset(venv)`` after the reset, before the first decision.
-    name : str
-        Used in error messages.
 
     Raises
     ------
     FloatingPointError
-        ``act`` returned non-finite actions.
+        The law returned non-finite actions.
     RuntimeError
         Cases still flying after ``max_steps``.
     """
@@ -105,8 +117,8 @@ def fly(env_id: str, act: Callable[[np.ndarray, Any, np.ndarray], np.ndarray], n
     try:
         obs, _ = venv.reset(seed=seed, options=reset_options)
         core = venv.unwrapped
-        if on_reset is not None:
-            on_reset(venv)
+        law.reset(FlightComputer.of(core, env_id), np.arange(n))
+        name = law_label(law)
         if max_steps is None:
             max_steps = int(math.ceil(core.time_limit_s / core.dt_s)) + 10
         active = np.ones(n, dtype=bool)
@@ -126,8 +138,13 @@ def fly(env_id: str, act: Callable[[np.ndarray, Any, np.ndarray], np.ndarray], n
                         hist[i]["obs"].append(np.array(obs[i], copy=True))
                         hist[i]["state_nd"].append(np.array(states[i], copy=True))
                         hist[i]["t_s"].append(float(times[i]))
+            nav, truth = _navigation(core, obs, active, law.privileged)
             t0 = time.perf_counter()
-            action = np.asarray(act(obs, venv, active), dtype=np.float32)
+            if truth is None:
+                action = law.act(nav)
+            else:
+                action = law.act_privileged(nav, truth)
+            action = np.asarray(action, dtype=np.float32)
             wall += time.perf_counter() - t0
             n_dec += int(active.sum())
             if not np.all(np.isfinite(action)):

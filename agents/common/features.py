@@ -12,7 +12,7 @@ quantities directly. They are computed **from the env's observation alone** (whi
 invertible scaling of the physical state, up to the observation clipping), so the same function
 serves training, the terminal observations SB3 bootstraps from, and evaluation, and a policy
 trained with features can be replayed exactly: the run's ``config.yml`` records
-``obs_features`` and :class:`agents.evaluate.SB3Policy` re-applies them.
+``obs_features`` and :class:`agents.common.sb3_law.SB3Law` re-applies them.
 
 Feature names (YAML key ``obs_features``; each adds the columns listed, in this order):
 
@@ -332,7 +332,7 @@ def _feature_bounds(names: Sequence[str], pinpoint: bool = False
 class ObsFeatureWrapper(VecEnvWrapper):
     """Append :func:`augment_observation` features to every observation of a soft-landing VecEnv.
 
-    :param venv: a VecEnv whose innermost env is :class:`agents.vec_env.LanderSB3VecEnv` of
+    :param venv: a VecEnv whose innermost env is :class:`agents.common.vec_env.LanderSB3VecEnv` of
         ``LunarSoftLanding-v0`` (curriculum wrappers in between are fine: the features are a
         function of the observation alone).
     :param names: feature names (:data:`FEATURE_WIDTHS`).

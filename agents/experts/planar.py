@@ -1,10 +1,11 @@
-"""Closed-loop experts: policies that re-plan the optimal control from the current state.
+"""The planar soft-landing family (``LunarSoftLanding-v0``): its expert, laws and optimum.
 
-:class:`PontryaginExpert` (planar landing) re-solves the minimum-fuel problem by Pontryagin
-shooting (:func:`optimizers.indirect.planar.solve_planar_min_fuel`) at every call, warm-started
-from its previous plan; it is the DAgger oracle of :mod:`agents.imitation` and a row of
-:mod:`agents.evaluate`. It moved here from ``optimizers.pontryagin`` (a policy is an agent, and
-optimizers/ must not depend on agents/).
+- :class:`PontryaginExpert` re-solves the minimum-fuel problem by Pontryagin shooting from the
+  current state (the DAgger oracle);
+- :class:`PlanarReplanningLaw` flies it as a guidance law, on the navigation solution;
+- :class:`PlanarOpenLoopLaw` replays each case's optimal thrust-angle history;
+- :class:`PlanarFamily` answers the family's questions (:mod:`agents.experts.family`): the
+  per-case optimum (Pontryagin batch), the laws above, curriculum starts, plots.
 """
 
 from __future__ import annotations
@@ -14,8 +15,13 @@ import time
 
 import numpy as np
 
+from agents.common.law import GuidanceLaw, Navigation
+from agents.experts.family import EnvFamily, PerCaseOptimum
 from lunar_env import dynamics as dyn
+from lunar_env.envs.soft_landing import action_from_thrust_angle, thrust_angle_from_action
 from lunar_env.scenarios import PlanarScenario
+from lunar_env.states import planar_nd_to_si
+from optimizers.indirect.batch import solve_many
 from optimizers.indirect.planar import (
     PontryaginGuess,
     PontryaginSolution,
@@ -25,8 +31,9 @@ from optimizers.indirect.planar import (
 )
 from optimizers.transcription.collocation import solve_planar_min_time_collocation
 
-__all__ = ["PontryaginExpert", "STATUS_OPTIMAL", "STATUS_HOLD", "STATUS_FALLBACK",
-           "STATUS_CONSTRAINED", "PinpointPontryaginExpert", "PINPOINT_LABEL_STATUSES"]
+__all__ = ["PontryaginExpert", "PlanarReplanningLaw", "PlanarOpenLoopLaw", "PlanarFamily",
+           "planar_state_si", "STATUS_OPTIMAL", "STATUS_HOLD", "STATUS_FALLBACK",
+           "STATUS_CONSTRAINED"]
 
 N_STATE = len(dyn.PLANAR_STATE_NAMES)
 
@@ -92,6 +99,12 @@ class PontryaginExpert:
     def reset(self) -> None:
         """Forget previous solutions (start of a new episode)."""
         self._memory.clear()
+
+    def plan(self, row: int = 0) -> PontryaginSolution | None:
+        """The plan (optimal solution from the last converged call) remembered for batch row
+        ``row``, or None."""
+        mem = self._memory.get(int(row))
+        return None if mem is None else mem[0]
 
     def __call__(self, state_si, t_s=None):
         """Optimal thrust angle (rad) from SI state(s).
@@ -188,84 +201,142 @@ class PontryaginExpert:
         return float(optimal_thrust_angle(sol.x0_nd, sol.costates0)), STATUS_OPTIMAL, sol.fuel_kg
 
 
-#: statuses of :class:`PinpointPontryaginExpert` decisions that are the extremal's law, hence
-#: labels; "stale" and "fallback" (no converged solve) are guesses and are not
-PINPOINT_LABEL_STATUSES = ("optimal", "nearest", "hold")
+def planar_state_si(scenario, state_nd: np.ndarray) -> np.ndarray:
+    """Normalised planar states (r, vr, θ, ω, m) -> SI rows (r m, vr m/s, θ rad, v_t m/s, m kg)
+    (:func:`lunar_env.states.planar_nd_to_si` with the scenario's scaling)."""
+    return planar_nd_to_si(state_nd, scenario.scaling())
 
 
-class PinpointPontryaginExpert:
-    """Closed-loop optimal feedback for ``LunarPinpointLanding-v*``: at every decision the
-    minimum-time extremal from the lander's current state (:class:`optimizers.indirect.
-    pinpoint_feedback.PinpointFeedback`, compiled Pontryagin shooting warm-started from the
-    previous decision's extremal, ~1-15 ms), flown over the env step as its mean angle.
+def _actions(phi_rad: np.ndarray) -> np.ndarray:
+    return np.asarray(action_from_thrust_angle(phi_rad), dtype=np.float32).reshape(-1, 1)
 
-    A policy for :func:`agents.evaluate.compare` (``reset`` / ``act``), and the labeller of the
-    pinpoint datasets and of DAgger (:meth:`label`). Where the target is out of reach (a lander too
-    fast to stop at it), the extremal to the nearest reachable stop on the track is flown;
-    the per-decision statuses are counted in :attr:`status_counts`.
+
+class PlanarOpenLoopLaw(GuidanceLaw):
+    """Replay of per-case optimal thrust-angle histories φ(t).
+
+    The env holds each action for ``dt_s``; the replay samples φ at the middle of the step
+    (a second-order accurate hold of a smooth control). After the optimal final time the last
+    value is held. A law of the clock alone: it reads nothing of the navigation solution.
 
     Parameters
     ----------
-    scenario : PinpointScenario
-    feedback_kwargs : forwarded to :class:`PinpointFeedback` (``step_s``, ``hold_s``, ...).
+    solutions : sequence of PontryaginSolution
+        One per case (indexed by case id), with ``thrust_angle_at(t_s)``. Cases whose solve
+        failed fly φ = 0 (a braking burn) and are reported like any other case.
     """
 
-    name = "Pontryagin feedback expert"
+    name = "Pontryagin open loop"
 
-    def __init__(self, scenario, **feedback_kwargs) -> None:
-        from optimizers.indirect.pinpoint_feedback import PinpointFeedback
+    def __init__(self, solutions) -> None:
+        self.solutions = list(solutions)
+        self._ids = np.zeros(0, dtype=int)
 
+    def reset(self, computer, case_ids: np.ndarray) -> None:
+        super().reset(computer, case_ids)
+        self._ids = np.asarray(case_ids)
+
+    def act(self, nav: Navigation) -> np.ndarray:
+        t_mid = nav.t_s + 0.5 * self.computer.dt_s
+        phi = np.zeros(len(self._ids))
+        for k, cid in enumerate(self._ids):
+            sol = self.solutions[cid]
+            if sol.success:
+                phi[k] = sol.thrust_angle_at(float(t_mid[k]))
+        return _actions(phi)
+
+
+class PlanarReplanningLaw(GuidanceLaw):
+    """The closed-loop re-planning expert as a guidance law: one :class:`PontryaginExpert` per
+    case (each re-plan warm-started from that case's previous plan), called once per decision
+    of a lander still flying with its navigated SI state and its mission clock.
+
+    Parameters
+    ----------
+    scenario : PlanarScenario
+        The nominal scenario the expert plans with.
+    **expert_kwargs
+        Forwarded to :class:`PontryaginExpert`.
+    """
+
+    name = "Pontryagin re-planning"
+
+    def __init__(self, scenario, **expert_kwargs) -> None:
         self.scenario = scenario
-        self.feedback = PinpointFeedback(scenario, **feedback_kwargs)
-        self.status_counts: dict[str, int] = {}
-        #: landers still flying (set by agents.evaluate.rollout; None: all)
-        self.active: np.ndarray | None = None
+        self.expert_kwargs = expert_kwargs
+        self.experts: list[PontryaginExpert] = []
 
-    def reset(self, venv=None, case_ids=None) -> None:
-        self.feedback.reset()
+    def reset(self, computer, case_ids: np.ndarray) -> None:
+        super().reset(computer, case_ids)
+        self.experts = [PontryaginExpert(self.scenario, **self.expert_kwargs)
+                        for _ in range(len(case_ids))]
 
-    def angles(self, states_nd: np.ndarray, t_s: np.ndarray, dt_s: float,
-               active: np.ndarray | None = None) -> np.ndarray:
-        """(α, β) (rad), (B, 2), of the extremals from states (B, 7) at episode times (B,)."""
-        ang = self.feedback(states_nd, t_s, dt_s, active)
-        act = np.ones(len(ang), dtype=bool) if active is None else np.asarray(active, bool)
-        for st, a in zip(self.feedback.last_status, act, strict=True):
-            if a:
-                self.status_counts[st] = self.status_counts.get(st, 0) + 1
-        return ang
+    def act(self, nav: Navigation) -> np.ndarray:
+        si = planar_state_si(self.scenario, nav.state_nd)
+        phi = np.zeros(len(si))
+        for k in np.flatnonzero(nav.active):
+            phi[k] = float(self.experts[k](si[k], t_s=float(nav.t_s[k])))
+        return _actions(phi)
 
-    def label(self, venv, active: np.ndarray | None = None
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The expert's decision at the current states of the (vector) env ``venv``.
 
-        Returns ``(angles, actions, is_label)``: (α, β) (rad) and the env actions (float32),
-        both (B, 2), and (B,) bool: the row is active (``active``, else :attr:`active`, else
-        all) and its status is one of :data:`PINPOINT_LABEL_STATUSES`.
-        """
-        from lunar_env.envs.pinpoint_landing import action_from_angles
+class PlanarFamily(EnvFamily):
+    """The planar soft-landing family (:class:`~lunar_env.scenarios.PlanarScenario`)."""
 
-        core = getattr(venv, "unwrapped", venv)
-        self.match_gate(core)
-        rows = self.active if active is None else active
-        ang = self.angles(core.state_nd, core.t_s, float(core.dt_s), rows)
-        sc = core.scenario
-        actions = action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
-                                     sc.beta_bounds_rad).astype(np.float32)
-        is_label = np.isin(np.asarray(self.last_status), PINPOINT_LABEL_STATUSES)
-        if rows is not None:
-            is_label &= np.asarray(rows, dtype=bool)
-        return ang, actions, is_label
+    name = "planar"
+    #: the re-planning expert costs a Pontryagin solve per decision (~5 ms): 20 cases by default
+    default_expert_cases = 20
+    plot_labels = ("downrange (km)", "altitude (km)", "thrust angle φ (deg)")
 
-    def act(self, obs: np.ndarray, venv, active: np.ndarray | None = None) -> np.ndarray:
-        return self.label(venv, active)[1]
+    def handles(self, scenario) -> bool:
+        return isinstance(scenario, PlanarScenario)
 
-    def match_gate(self, env) -> None:
-        """Keep the extremals above the gate where ``env`` counts it (its ``gate_range_m``:
-        near the target in v2, everywhere in v0/v1)."""
-        task = getattr(env, "_task", None)
-        if task is not None and hasattr(task, "gate_range_m"):
-            self.feedback.gate_floor_range_m = task.gate_range_m
+    def per_case_optimum(self, scenario, states_nd: np.ndarray, *, progress: bool = True,
+                         workers: int = 1, executor=None) -> PerCaseOptimum:
+        """Pontryagin indirect shooting from each state (:func:`optimizers.indirect.batch.
+        solve_many`, warm-started along the cases; ``executor`` solves chunks in parallel)."""
+        if progress:
+            print(f"Solving {len(states_nd)} per-case optimal controls (Pontryagin)...",
+                  flush=True)
+        t0 = time.perf_counter()
+        sols = solve_many(scenario, planar_state_si(scenario, states_nd), progress=progress,
+                          executor=executor)
+        return PerCaseOptimum.from_solutions(list(sols), "optimizers.indirect.batch.solve_many",
+                                             time.perf_counter() - t0)
 
-    @property
-    def last_status(self) -> list[str]:
-        return self.feedback.last_status
+    def open_loop_law(self, optimum: PerCaseOptimum) -> GuidanceLaw:
+        return PlanarOpenLoopLaw(optimum.solutions)
+
+    def expert_law(self, scenario) -> GuidanceLaw:
+        return PlanarReplanningLaw(scenario)
+
+    def start_pool(self, scenario, n_trajectories: int, seed: int, n_points: int = 101,
+                   progress: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """States at ``n_points`` equal times along the Pontryagin optimum of each dispersed
+        start (touchdown excluded), shape (n_ok, n_points, 5), and their times (s)."""
+        rows = scenario.sample_initial(np.random.default_rng(seed), int(n_trajectories))
+        sols = [s for s in solve_many(scenario, rows, progress=progress) if s.success]
+        if not sols:
+            raise RuntimeError("no optimal trajectory converged; cannot build the curriculum")
+        states, times = [], []
+        for sol in sols:
+            t = np.linspace(0.0, sol.tf_s, n_points + 1)[:-1]
+            states.append(sol.state_costate_at(t)[:, :5])
+            times.append(t)
+        return np.asarray(states), np.asarray(times)
+
+    def plot_optimum(self, ax_trajectory, ax_control, solution, scenario) -> None:
+        r_surf = scenario.surface_radius_m
+        tr = solution.sample(n=301)
+        st = tr.states
+        ax_trajectory.plot(st["theta_rad"] * r_surf / 1e3, (st["radius_m"] - r_surf) / 1e3,
+                           "k--", lw=2, label="optimum")
+        ax_control.plot(tr.t_s, np.degrees(tr.controls["phi_rad"]), "k--", lw=2,
+                        label="optimum")
+
+    def plot_flight(self, ax_trajectory, ax_control, trace, scenario, label: str) -> None:
+        r_surf = scenario.surface_radius_m
+        y = trace["state_nd"]
+        ax_trajectory.plot(y[:, 2] * r_surf / 1e3,
+                           (y[:, 0] * scenario.scaling().length_m - r_surf) / 1e3, label=label)
+        if len(trace["action"]):
+            phi = thrust_angle_from_action(trace["action"][:, 0])
+            ax_control.step(trace["t_s"][:len(phi)], np.degrees(phi), where="post", label=label)

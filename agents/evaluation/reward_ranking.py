@@ -4,7 +4,8 @@ Flies reference strategies from the nominal start of a ``LunarPinpointLanding`` 
 their returns (undiscounted and discounted), gate speed, miss distance, fuel and the env's
 success verdict:
 
-- the Pontryagin feedback law (:class:`agents.experts.PinpointPontryaginExpert`: the extremal
+- the Pontryagin feedback law (:class:`agents.experts.pinpoint.PinpointPontryaginExpert`: the
+extremal
   re-solved from every state, the optimum in closed loop);
 - [001]'s optimum (GPM + direct shooting) replayed open loop, its law averaged over each step;
 - the local optima a learner may fall into: diving (α at its lower bound), braking along the
@@ -13,9 +14,10 @@ success verdict:
 
 The reward is right for RL when the closed-loop optimum ranks first and every failure below
 the optimum's open-loop replay. The column "with success bonus" adds the terminal reward that
-PPO's ``reward_shaping.success_bonus`` pays a success (:mod:`agents.shaping`; the potential
+PPO's ``reward_shaping.success_bonus`` pays a success (:mod:`agents.rl.shaping`; the potential
 part of the shaping is the same −Φ(s₀) for every strategy from one start, up to discounting).
-``python -m agents.reward_ranking --env LunarPinpointLanding-v2`` prints the table (``--json
+``python -m agents.evaluation.reward_ranking --env LunarPinpointLanding-v2`` prints the table
+(``--json
 FILE`` also writes it); ``tests/test_env_pinpoint.py`` (slow) asserts the ranking.
 """
 
@@ -63,15 +65,17 @@ def rank_strategies(env_id: str = "LunarPinpointLanding-v2", *, n_random: int = 
     """Fly the reference strategies from the nominal start; ``{name: metrics}`` in table order.
 
     Metrics: ``return``, ``discounted`` (Σ γᵏ rₖ), ``return_with_bonus`` (the return plus
-    ``success_bonus``, :func:`agents.shaping.resolve_success_bonus`, for a success),
+    ``success_bonus``, :func:`agents.rl.shaping.resolve_success_bonus`, for a success),
     ``gate_speed_m_s``, ``miss_m``, ``fuel_kg``, ``success``, ``steps``. Raises
     ``ValueError`` for an env that is not a pinpoint env.
     """
     import gymnasium as gym
 
     import lunar_env  # noqa: F401
-    from agents.experts import PinpointPontryaginExpert
-    from agents.shaping import resolve_success_bonus
+    from agents.common.law import FlightComputer
+    from agents.experts.pinpoint import PinpointFamily, PinpointPontryaginExpert
+    from agents.experts.registry import family_of
+    from agents.rl.shaping import resolve_success_bonus
     from lunar_env.envs.pinpoint_landing import action_from_angles, angles_from_action
     from optimizers.reproduce.peng2012 import get_solver
 
@@ -79,7 +83,7 @@ def rank_strategies(env_id: str = "LunarPinpointLanding-v2", *, n_random: int = 
         raise ValueError(f"gamma={gamma}: must be in (0, 1]")
     env = gym.make(env_id, **(env_kwargs or {})).unwrapped
     scenario = env.scenario
-    if not hasattr(scenario, "alpha_bounds_rad"):
+    if not isinstance(family_of(scenario), PinpointFamily):  # the strategies below are 3D ones
         raise ValueError(f"{env_id!r} is not a pinpoint env (scenario {scenario.name!r})")
     solver = get_solver(scenario)
     solver.build()
@@ -106,9 +110,10 @@ def rank_strategies(env_id: str = "LunarPinpointLanding-v2", *, n_random: int = 
     expert = PinpointPontryaginExpert(scenario)
 
     def feedback(k: int) -> np.ndarray:
+        # the nominal world: the lander's state is its navigation solution
         if k == 0:
-            expert.reset()
-        return expert.act(None, env)[0]
+            expert.reset(FlightComputer.of(env, env_id), np.arange(1))
+        return expert.labels(env.state_nd[None], np.array([env.t_s]))[1][0]
 
     def constant(alpha_rad: float) -> Callable[[int], np.ndarray]:
         a = action_from_angles(alpha_rad, math.pi, ab, bb).astype(np.float32)
@@ -146,7 +151,8 @@ def markdown_table(ranking: dict[str, dict[str, Any]]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m agents.reward_ranking", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m agents.evaluation.reward_ranking",
+                                description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--env", default="LunarPinpointLanding-v2")
     p.add_argument("--gamma", type=float, default=DEFAULT_GAMMA)
@@ -159,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.env}, nominal start, γ = {args.gamma}:\n")
     print(markdown_table(ranking))
     if args.json:
-        from agents.runs import write_text_atomic
+        from agents.common.runs import write_text_atomic
 
         write_text_atomic(args.json, json.dumps({"env_id": args.env, "gamma": args.gamma,
                                                  "ranking": ranking}, indent=1))

@@ -2,7 +2,7 @@
 or continue one SB3 run in a run directory.
 
 Split from the command line (:mod:`agents.train`) so that tools that train many runs (the
-hyperparameter search, :mod:`agents.optimize`) depend on the core without an import cycle with
+hyperparameter search, :mod:`agents.rl.search`) depend on the core without an import cycle with
 the CLI that dispatches to them.
 """
 
@@ -18,10 +18,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.hyperparams import (
-    resolve_algo_kwargs,
-)
-from agents.runs import (
+from agents.common.runs import (
     algo_class,
     load_trained,
     resumable_checkpoint,
@@ -29,7 +26,10 @@ from agents.runs import (
     save_vecnormalize_atomic,
     write_text_atomic,
 )
-from agents.runs import latest_checkpoint as latest_checkpoint  # re-export (0.1 API)
+from agents.common.runs import latest_checkpoint as latest_checkpoint  # re-export (0.1 API)
+from agents.hyperparams import (
+    resolve_algo_kwargs,
+)
 
 __all__ = ["train", "make_training_env", "DEFAULT_ENV_ID"]
 
@@ -57,13 +57,13 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
                       reward_shaping: dict[str, Any] | None = None, gamma: float = 0.99):
     """Build the SB3 ``VecEnv`` to train on (no normalisation wrapper).
 
-    Our env ids go through the natively batched vector env (:func:`agents.vec_env.
+    Our env ids go through the natively batched vector env (:func:`agents.common.vec_env.
     make_sb3_vec_env`); other Gymnasium ids through SB3's ``make_vec_env`` (``DummyVecEnv``).
-    ``curriculum`` (the YAML mapping) wraps the batch in :class:`agents.curriculum.
+    ``curriculum`` (the YAML mapping) wraps the batch in :class:`agents.rl.curriculum.
     OptimalStartCurriculum` annealed over ``total_timesteps``; ``obs_features`` (names of
-    :mod:`agents.features`) appends derived features to the observations
-    (:class:`agents.features.ObsFeatureWrapper`, outside the curriculum); ``reward_shaping``
-    (YAML mapping) adds the potential-based shaping of :class:`agents.shaping.PotentialShaping`
+    :mod:`agents.common.features`) appends derived features to the observations
+    (:class:`agents.common.features.ObsFeatureWrapper`, outside the curriculum); ``reward_shaping``
+    (YAML mapping) adds the potential-based shaping of :class:`agents.rl.shaping.PotentialShaping`
     with discount ``gamma`` (training only: evaluation measures landings, not rewards). Episode
     statistics are recorded by ``VecMonitor`` when the adapter does not already (they show the
     shaped return when shaping is on).
@@ -76,21 +76,21 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
     if n_envs < 1:
         raise ValueError(f"n_envs={n_envs} must be >= 1")
     if _is_native_env(env_id):
-        from agents.vec_env import make_sb3_vec_env
+        from agents.common.vec_env import make_sb3_vec_env
 
         venv = make_sb3_vec_env(env_id, n_envs, seed=seed, **env_kwargs)
         if curriculum:
-            from agents.curriculum import OptimalStartCurriculum
+            from agents.rl.curriculum import OptimalStartCurriculum
 
             venv = OptimalStartCurriculum(venv, total_timesteps=total_timesteps,
                                           seed=0 if seed is None else int(seed),
                                           progress=progress, **curriculum)
         if reward_shaping:
-            from agents.shaping import PotentialShaping
+            from agents.rl.shaping import PotentialShaping
 
             venv = PotentialShaping(venv, gamma=gamma, **reward_shaping)
         if obs_features:
-            from agents.features import ObsFeatureWrapper
+            from agents.common.features import ObsFeatureWrapper
 
             venv = ObsFeatureWrapper(venv, obs_features)
     else:
@@ -155,7 +155,7 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
         ``VecNormalize`` statistics, the replay buffer (off-policy) and the run's config are
         saved alongside. ``save_freq`` counts env steps (all envs together), not calls.
 
-        ``stop_at`` (a seed-race candidate, :mod:`agents.race`): at the first rollout start at
+        ``stop_at`` (a seed-race candidate, :mod:`agents.rl.race`): at the first rollout start at
         or after that step, the checkpoint of the last update is written (if it is not there
         yet) and ``learn()`` ends, the schedules keeping the run's full length. SB3 ends on the
         first ``on_step`` of that rollout, so the one batch step it discarded is rolled back
@@ -267,8 +267,6 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
                     parts.append(f"from dispersion {100 * np.mean(c['dispersed_success']):.1f} %"
                                  f" of {len(c['dispersed_success'])}")
                 parts.append(f"curriculum p {cur.current_prob:.2f}")
-                if cur.start_window is not None:
-                    parts.append(f"starts from {cur.current_min_fraction:.2f}")
             parts.append(f"{time.perf_counter() - self._t0:.0f} s")
             for v in c.values():
                 v.clear()
@@ -297,7 +295,6 @@ def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
             cur = _find_wrapper(self.training_env, "OptimalStartCurriculum")
             if cur is not None:
                 self.logger.record("curriculum/start_prob", cur.current_prob)
-                self.logger.record("curriculum/min_start_fraction", cur.current_min_fraction)
             for k, vals in self._acc.items():
                 if vals:
                     self.logger.record(f"episode/{k}", float(np.mean(vals)))
@@ -315,9 +312,9 @@ def _select_final(model, run_dir: Path, run: dict[str, Any], hp: dict[str, Any],
                   sel: dict[str, Any], algo: str):
     """``select_checkpoint: {states, last, seed, warn_below}``: the final ``model.zip`` (and its
     statistics) become the newest-``last`` checkpoint that lands most of ``states`` validation
-    cases (:mod:`agents.selection`); the last iterate stays the newest checkpoint, so
+    cases (:mod:`agents.rl.selection`); the last iterate stays the newest checkpoint, so
     ``--resume`` still extends the run. Returns the chosen model."""
-    from agents.selection import VALIDATION_SEED, select_checkpoint
+    from agents.rl.selection import VALIDATION_SEED, select_checkpoint
     from lunar_env.validation import require_option_keys
     from optimizers.common.checkpoint import atomic_write_bytes
 
@@ -433,7 +430,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     training writes a checkpoint and propagates. ``on_resumed()`` is called once a resumed
     checkpoint has loaded (the CLI records a changed config only then: a failed resume changes
     nothing in the run directory). ``run["stop_at_steps"]`` (a seed-race candidate,
-    :mod:`agents.race`) ends training at the first rollout boundary at or after that step, with
+    :mod:`agents.rl.race`) ends training at the first rollout boundary at or after that step, with
     the schedules of the full ``n_timesteps`` and no checkpoint selection.
     """
     import torch
@@ -493,7 +490,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             venv = VecNormalize(venv, **norm_kw)
         kwargs = resolve_algo_kwargs(hp, algo, n_actions=int(np.prod(venv.action_space.shape)))
         if init is not None:
-            from agents.features import StandardizedInputs
+            from agents.common.features import StandardizedInputs
 
             fx = getattr(init.policy, "features_extractor", None)
             if isinstance(fx, StandardizedInputs):
@@ -563,7 +560,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         extra.append(noise_anneal_callback(n_timesteps, float(anneal.get("start_fraction", 0.85)),
                                            float(anneal.get("final_log_std", -5.0))))
     stop_at = run.get("stop_at_steps")
-    if stop_at is not None:  # a seed-race candidate (agents.race): the full run's schedules,
+    if stop_at is not None:  # a seed-race candidate (agents.rl.race): the full run's schedules,
         ckpt_cb.stop_at = int(stop_at)  # stopped at the decision step
         if model.num_timesteps >= int(stop_at):
             remaining = 0

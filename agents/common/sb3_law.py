@@ -1,0 +1,64 @@
+"""A trained Stable-Baselines3 model as a guidance law (:mod:`agents.common.law`)."""
+
+from __future__ import annotations
+
+import pickle
+from pathlib import Path
+
+import numpy as np
+
+from agents.common.features import augment_observation, feature_constants, validate_features
+from agents.common.law import FlightComputer, GuidanceLaw, Navigation
+
+__all__ = ["SB3Law"]
+
+
+class SB3Law(GuidanceLaw):
+    """A trained SB3 model with its ``VecNormalize`` observation statistics: deterministic
+    actions, all landers in one batched forward pass of the observations.
+
+    Parameters
+    ----------
+    model : BaseAlgorithm
+    vecnormalize : VecNormalize or str or Path or None
+        Statistics (or the ``.pkl`` written by ``VecNormalize.save``); ``None`` if the model was
+        trained without normalisation.
+    name : str
+    obs_features : list of str, optional
+        Derived observation features the model was trained with (:mod:`agents.common.features`,
+        the run's ``obs_features``); computed from the observation and the flight computer's
+        nominal constants and appended before normalisation, as in training.
+    """
+
+    def __init__(self, model, vecnormalize=None, name: str = "PPO",
+                 obs_features: list[str] | None = None) -> None:
+        self.model = model
+        self.name = name
+        if isinstance(vecnormalize, str | Path):
+            with open(vecnormalize, "rb") as fh:
+                vecnormalize = pickle.load(fh)
+        self.vecnormalize = vecnormalize
+        self.obs_features = validate_features(obs_features)
+        self._feature_consts = None
+
+    @classmethod
+    def from_path(cls, path: str | Path, name: str | None = None) -> SB3Law:
+        """Load from a run directory or model ``.zip`` (:func:`agents.common.runs.load_trained`)."""
+        from agents.common.runs import load_trained, read_run
+
+        model, vn_path, algo = load_trained(path)
+        hp = read_run(path)[1]
+        return cls(model, vn_path, name=name or algo.upper(), obs_features=hp.get("obs_features"))
+
+    def reset(self, computer: FlightComputer, case_ids: np.ndarray) -> None:
+        super().reset(computer, case_ids)
+        self._feature_consts = feature_constants(computer) if self.obs_features else None
+
+    def act(self, nav: Navigation) -> np.ndarray:
+        obs = nav.obs
+        if self.obs_features:
+            obs = augment_observation(obs, self._feature_consts, self.obs_features)
+        if self.vecnormalize is not None:
+            obs = self.vecnormalize.normalize_obs(obs)
+        action, _ = self.model.predict(obs, deterministic=True)
+        return action

@@ -1,0 +1,252 @@
+"""Compare policies with the optimiser baselines over one seeded set of dispersed initial states.
+
+::
+
+    python -m agents.evaluate --model runs/ppo/LunarSoftLanding-v0_1          # + baselines
+    python -m agents.evaluate --model a/model.zip --model b/ --n-states 200 --out results/cmp
+    python -m agents.evaluate --no-open-loop --expert-states 0 --model runs/ppo/...
+
+Every law flies the **same** initial states: the native vector env is reset with one seed,
+and sub-env ``i`` draws its initial state with seed ``seed + i`` (the Gymnasium vector-env
+convention the env follows), so case ``i`` is the same for every law and for any batch size
+that contains it. For each case the per-case optimum is computed from the very initial state
+the env drew, by the env family (:mod:`agents.experts`): Pontryagin indirect shooting for the
+planar soft landing, [001]'s serial GPM + shooting for the pinpoint landing.
+
+Laws (:mod:`agents.common.law`)
+-------------------------------
+- the laws given (e.g. :class:`agents.common.sb3_law.SB3Law`: a trained model with its
+  ``VecNormalize`` statistics, deterministic actions, one batched forward pass);
+- the family's baselines: the replay of each case's optimal control history (open loop), and
+  the closed-loop expert, which re-solves the optimum from the navigation solution at every
+  decision. It costs a solve per decision, so by default it flies only the family's
+  ``default_expert_cases`` first cases (its fuel gap is measured on those cases' optima).
+  Privileged laws (teachers that read the truth) are marked in the table.
+
+Metrics (one row per policy)
+----------------------------
+- ``success_rate``: touchdown with the env's success criterion (``info["is_success"]``);
+- ``touchdown_speed_m_s`` mean and 95th percentile over cases that touched down;
+- ``miss_distance_m`` mean (pinpoint env only);
+- ``fuel_kg`` mean over all cases; ``fuel_gap_pct``: mean over *successful* cases of
+  100·(fuel − optimal fuel)/optimal fuel (decision: a crash can use less fuel than the optimum,
+  so averaging over failures would reward them; the all-case gap is in the JSON too);
+- ``us_per_decision``: wall time of the policy's action computation divided by the number of
+  decisions of landers still flying (batched policies amortise one forward pass over the
+  batch; the expert's time is one re-plan per decision).
+
+Outputs: a Markdown table (printed and ``comparison.md``), ``comparison.json`` and
+``trajectories.png`` (trajectory and thrust angle of each policy beside the optimum for a few
+cases) in the output directory.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.common.law import GuidanceLaw, law_label
+from agents.common.rollout import fly, make_vec
+from agents.common.sb3_law import SB3Law
+from agents.evaluation.report import markdown_table, write_report
+from agents.experts.registry import family_of
+
+__all__ = ["PolicyResult", "initial_states", "rollout", "compare", "evaluate_run",
+           "DEFAULT_ENV_ID", "DEFAULT_N_STATES", "DEFAULT_SEED"]
+
+DEFAULT_ENV_ID = "LunarSoftLanding-v0"
+DEFAULT_N_STATES = 1000
+DEFAULT_SEED = 2026
+
+
+def initial_states(env_id: str, n: int, seed: int, env_kwargs: dict[str, Any] | None = None
+                   ) -> np.ndarray:
+    """The normalised initial states (n, n_state) of cases ``0..n-1`` for ``seed``."""
+    venv = make_vec(env_id, n, env_kwargs)
+    try:
+        venv.reset(seed=seed)
+        return np.array(venv.unwrapped.state_nd, dtype=np.float64, copy=True)
+    finally:
+        venv.close()
+
+
+# ----------------------------------------------------------------------------- rollout
+
+
+@dataclass
+class PolicyResult:
+    """Per-case outcome of one policy (arrays of length n_cases)."""
+
+    name: str
+    case_ids: np.ndarray
+    is_success: np.ndarray
+    touchdown_speed_m_s: np.ndarray
+    miss_distance_m: np.ndarray
+    fuel_used_kg: np.ndarray
+    episode_time_s: np.ndarray
+    n_decisions: int
+    policy_wall_s: float
+    traces: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
+
+    @property
+    def us_per_decision(self) -> float:
+        return 1e6 * self.policy_wall_s / max(self.n_decisions, 1)
+
+
+def rollout(env_id: str, law: GuidanceLaw, n: int, seed: int,
+            env_kwargs: dict[str, Any] | None = None, trace_cases: int = 3,
+            max_steps: int | None = None) -> PolicyResult:
+    """Fly ``law`` from cases ``0..n-1`` (one batched vector env) until every case ended.
+
+    Parameters
+    ----------
+    env_id : str
+    law : GuidanceLaw
+    n : int
+        Number of cases.
+    seed : int
+        Seed of the case set (case i = sub-env seeded ``seed + i``).
+    env_kwargs : dict, optional
+        Passed to the env (must match those used in training).
+    trace_cases : int
+        Record state and action histories of the first ``trace_cases`` cases for plots.
+    max_steps : int, optional
+        Safety bound on the number of vector steps (default: the env's time limit / dt + 10).
+
+    Returns
+    -------
+    PolicyResult
+    """
+    out = fly(env_id, law, n, seed=seed, env_kwargs=env_kwargs, record=range(trace_cases),
+              record_final=True, max_steps=max_steps)
+    traces = {i: {"t_s": r["t_s"], "state_nd": r["state_nd"], "action": r["action"]}
+              for i, r in out.records.items()}
+    return PolicyResult(law_label(law), np.arange(n), out.is_success, out.touchdown_speed_m_s,
+                        out.miss_distance_m, out.fuel_used_kg, out.episode_time_s,
+                        out.n_decisions, out.policy_wall_s, traces)
+
+
+# ----------------------------------------------------------------------------- comparison
+
+
+def _summary(res: PolicyResult, opt_fuel: np.ndarray | None,
+             opt_tf: np.ndarray | None = None) -> dict[str, Any]:
+    td = np.isfinite(res.touchdown_speed_m_s)
+    row: dict[str, Any] = {
+        "policy": res.name,
+        "n_cases": int(len(res.case_ids)),
+        "success_rate": float(np.mean(res.is_success)),
+        "touchdown_rate": float(np.mean(td)),
+        "touchdown_speed_mean_m_s": float(np.mean(res.touchdown_speed_m_s[td])) if td.any()
+        else float("nan"),
+        "touchdown_speed_p95_m_s": float(np.percentile(res.touchdown_speed_m_s[td], 95))
+        if td.any() else float("nan"),
+        "miss_distance_mean_m": float(np.nanmean(res.miss_distance_m))
+        if np.isfinite(res.miss_distance_m).any() else float("nan"),
+        "fuel_mean_kg": float(np.nanmean(res.fuel_used_kg)),
+        "us_per_decision": float(res.us_per_decision),
+        "n_decisions": int(res.n_decisions),
+        "policy_wall_s": float(res.policy_wall_s),
+    }
+    gap_s = gap_all = float("nan")
+    n_gap = 0
+    if opt_fuel is not None:
+        opt = opt_fuel[res.case_ids]
+        ok = np.isfinite(opt) & np.isfinite(res.fuel_used_kg)
+        gap = 100.0 * (res.fuel_used_kg - opt) / opt
+        if ok.any():
+            gap_all = float(np.mean(gap[ok]))
+        oks = ok & res.is_success
+        n_gap = int(oks.sum())
+        if oks.any():
+            gap_s = float(np.mean(gap[oks]))
+        row["optimal_fuel_mean_kg"] = float(np.nanmean(opt))
+    row["fuel_gap_pct"] = gap_s
+    # final-time gap: mean over successful cases of 100·(episode time − optimal tf)/optimal tf
+    row["final_time_gap_pct"] = float("nan")
+    if opt_tf is not None:
+        tf = opt_tf[res.case_ids]
+        okt = np.isfinite(tf) & np.isfinite(res.episode_time_s) & res.is_success
+        if okt.any():
+            row["final_time_gap_pct"] = float(np.mean(
+                100.0 * (res.episode_time_s[okt] - tf[okt]) / tf[okt]))
+    row["fuel_gap_pct_all_cases"] = gap_all
+    row["n_cases_in_gap"] = n_gap
+    return row
+
+
+def compare(env_id: str, laws: list[GuidanceLaw], n_states: int = DEFAULT_N_STATES,
+            seed: int = DEFAULT_SEED, env_kwargs: dict[str, Any] | None = None,
+            open_loop: bool = True, n_expert_states: int | None = None,
+            trace_cases: int = 3, progress: bool = True,
+            optimum_workers: int = 1, optimum_executor=None) -> dict[str, Any]:
+    """Fly ``laws`` and the env family's optimiser baselines over one case set; return the
+    report dict.
+
+    ``n_expert_states``: cases flown by the family's closed-loop expert (None: the family's
+    ``default_expert_cases``; 0: none). ``open_loop``: also fly the replay of each case's
+    optimum. ``optimum_executor`` (:mod:`optimizers.common.executor`, e.g. Ray) runs the
+    per-case optima (default: this process, or ``optimum_workers`` processes where the family
+    uses them).
+
+    Keys: ``env_id``, ``seed``, ``n_states``, ``rows`` (one summary per law, see the module
+    docstring), ``optimum`` (per-case optimal fuel summary and solver wall time), ``results``
+    (the :class:`PolicyResult` objects, not JSON-serialised), ``optimal_solutions``,
+    ``family`` (its name).
+    """
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+
+    states = initial_states(env_id, n_states, seed, env_kwargs)
+    env = gym.make(env_id, **(env_kwargs or {}))
+    scenario = env.unwrapped.scenario
+    env.close()
+    family = family_of(scenario)
+    optimum = family.per_case_optimum(scenario, states, progress=progress,
+                                      workers=optimum_workers, executor=optimum_executor)
+    flights = [(law, n_states) for law in laws]
+    flights += family.baseline_laws(scenario, optimum, n_states, open_loop=open_loop,
+                                    n_expert_cases=n_expert_states)
+    runs: list[PolicyResult] = []
+    for law, n in flights:
+        if progress:
+            print(f"Evaluating {law_label(law)} on {n} cases...", flush=True)
+        runs.append(rollout(env_id, law, n, seed, env_kwargs, trace_cases=trace_cases))
+    rows = [_summary(r, optimum.fuel_kg, optimum.tf_s) for r in runs]
+    return {"env_id": env_id, "seed": seed, "n_states": n_states,
+            "env_kwargs": dict(env_kwargs or {}), "rows": rows, "optimum": optimum.info,
+            "results": runs, "optimal_solutions": optimum.solutions,
+            "initial_states_nd": states, "scenario": scenario, "family": family.name}
+
+
+def evaluate_run(run_dir: str | Path, n_states: int = DEFAULT_N_STATES, seed: int = DEFAULT_SEED,
+                 n_expert_states: int | None = None, open_loop: bool = True,
+                 out_dir: str | Path | None = None) -> dict[str, Any]:
+    """Evaluate a training run (its final model) against the baselines; print and save the table.
+
+    Uses the run's env id and ``env_kwargs`` (from ``args.yml`` / ``config.yml``); writes into
+    ``<run_dir>/evaluation`` unless ``out_dir`` is given.
+    """
+    from agents.common.runs import read_run
+
+    run_dir = Path(run_dir)
+    args, hp = read_run(run_dir)
+    env_id = args["env"]
+    law = SB3Law.from_path(run_dir, name=f"{args['algo'].upper()} ({run_dir.name})")
+    report = compare(env_id, [law], n_states=n_states, seed=seed,
+                     env_kwargs=hp.get("env_kwargs"), open_loop=open_loop,
+                     n_expert_states=n_expert_states)
+    paths = write_report(report, out_dir or run_dir / "evaluation")
+    print()
+    print(f"## {env_id}: {n_states} dispersed initial states (seed {seed})")
+    print()
+    print(markdown_table(report))
+    print()
+    print("Written: " + ", ".join(str(p) for p in paths.values()))
+    return report
+
+

@@ -1,0 +1,168 @@
+"""Start-state curriculum from optimal trajectories (a reverse curriculum for the landing envs).
+
+Why: the soft landing is a thin target for exploration. The lander's engine only steers, the
+propellant margin over the optimum is ~8 % (277 of 300 kg for ``zhu2007``), and a policy that
+wastes a few percent of its thrust on exploration noise runs dry and crashes. Almost every
+episode of an untrained policy ends in a crash at hundreds of m/s, so PPO sees almost no signal
+of what a landing looks like (measured: 0 successes in 2·10⁶ steps from the dispersion alone).
+
+What: with probability ``p`` an episode does not start from the scenario's dispersion but from a
+point of a minimum-fuel trajectory (Pontryagin, :func:`optimizers.pontryagin.solve_many`) of a
+dispersed case, at a uniformly drawn fraction of its flight time, with the episode clock set to
+that time (so the observation's time feature is consistent). Late starts teach the endgame first;
+``p`` decays linearly from ``start_prob`` to 0 over the first ``anneal_fraction`` of training, so
+the last part of training — and every evaluation — uses the true initial-state distribution
+(Florensa et al. 2017, "Reverse curriculum generation"; Salimans & Chen 2018, "Learning
+Montezuma's Revenge from a single demonstration"). The policy is never shown an optimal action:
+only states to start from.
+
+Soft landing: Pontryagin optima. Pinpoint landing: the env's per-case optimum of
+:mod:`agents.experts.pinpoint_optimum` (serial GPM + direct shooting, cached), its shooting nodes
+as the
+pool.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.vec_env import VecEnvWrapper
+
+from agents.experts.registry import family_of
+
+__all__ = ["OptimalStartCurriculum", "optimal_start_pool"]
+
+
+def optimal_start_pool(scenario, n_trajectories: int, seed: int, n_points: int = 101,
+                       progress: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """States along minimum-fuel trajectories of ``n_trajectories`` dispersed cases, from the
+    scenario's env family (:meth:`agents.experts.family.EnvFamily.start_pool`).
+
+    Returns
+    -------
+    states_nd : ndarray, shape (n_ok, n_points, n_state)
+        Normalised states at ``n_points`` equally spaced times of each converged solution (the
+        last point, touchdown or the gate, excluded: nothing is left to learn there).
+    times_s : ndarray, shape (n_ok, n_points)
+        Time since the case's initial state (s).
+    """
+    return family_of(scenario).start_pool(scenario, n_trajectories, seed, n_points=n_points,
+                                          progress=progress)
+
+
+class OptimalStartCurriculum(VecEnvWrapper):
+    """Start a share of the episodes from states on optimal trajectories (see module docstring).
+
+    :param venv: an :class:`agents.common.vec_env.LanderSB3VecEnv` of ``LunarSoftLanding-v0`` (it
+    must
+        be the innermost env: the wrapper sets the native batch's state).
+    :param total_timesteps: training length; ``p`` reaches 0 at ``anneal_fraction`` of it.
+    :param start_prob: ``p`` at the start of training.
+    :param anneal_fraction: fraction of training over which ``p`` decays linearly to 0.
+    :param n_trajectories: dispersed cases solved to build the pool of start states.
+    :param min_time_fraction, max_time_fraction: start times are drawn uniformly in this
+        fraction of each optimal flight time.
+    :param seed: seed of the cases and of the draws.
+    :param pool_seed: seed of the pool's cases if not ``seed``. The pinpoint entry in
+        ``ppo.yml`` fixes it, so that every training seed starts from the same optimal
+        trajectories (the draws of start points along them still follow ``seed``).
+    :param start_noise: ``None`` or ``{position_m, velocity_m_s}`` (pinpoint env): Gaussian
+        perturbations (σ per Cartesian component) added to every curriculum start, so that
+        the policy also starts *off* the optimal trajectories and learns to recover (the
+        states its own errors lead to), as DART (Laskey et al. 2017) does for imitation.
+    :param progress: progress bar while solving.
+
+    Every finished episode's ``info`` gets ``start_fraction``: the fraction of the optimal
+    flight time it started at, NaN for a start from the dispersion (the evaluation's
+    distribution), so that a log can tell the two apart.
+    """
+
+    def __init__(self, venv, total_timesteps: int, start_prob: float = 0.8,
+                 anneal_fraction: float = 0.7, n_trajectories: int = 256,
+                 min_time_fraction: float = 0.0, max_time_fraction: float = 1.0,
+                 seed: int = 0, pool_seed: int | None = None,
+                 start_noise: dict[str, float] | None = None, progress: bool = True) -> None:
+        super().__init__(venv)
+        native = getattr(venv, "native", None)
+        if native is None or not hasattr(native, "scenario"):
+            raise TypeError("OptimalStartCurriculum wraps the LanderSB3VecEnv of "
+                            "agents.common.vec_env.make_sb3_vec_env directly")
+        if not (0.0 <= start_prob <= 1.0):
+            raise ValueError(f"start_prob={start_prob!r} must be in [0, 1]")
+        if not (0.0 < anneal_fraction <= 1.0):
+            raise ValueError(f"anneal_fraction={anneal_fraction!r} must be in (0, 1]")
+        if not (0.0 <= min_time_fraction < max_time_fraction <= 1.0):
+            raise ValueError("need 0 <= min_time_fraction < max_time_fraction <= 1, got "
+                             f"{min_time_fraction!r}, {max_time_fraction!r}")
+        self.native = native
+        self.total_timesteps = int(total_timesteps)
+        self.start_prob = float(start_prob)
+        self.anneal_fraction = float(anneal_fraction)
+        self.min_time_fraction = float(min_time_fraction)
+        self.max_time_fraction = float(max_time_fraction)
+        self.rng = np.random.default_rng(seed + 7919)
+        t0 = time.perf_counter()
+        self.pool_states, self.pool_times = optimal_start_pool(
+            native.scenario, n_trajectories, seed if pool_seed is None else int(pool_seed),
+            progress=progress)
+        self.pool_build_s = time.perf_counter() - t0
+        self.family = family_of(native.scenario)
+        self.start_noise_nd = (self.family.start_noise_nd(native.scenario, start_noise)
+                               if start_noise else None)
+        self.num_timesteps = 0
+        self.n_curriculum_starts = 0
+        self.n_starts = 0
+        self.start_fraction = np.full(self.num_envs, np.nan)
+
+    @property
+    def current_prob(self) -> float:
+        """``p`` at the current training step."""
+        frac = self.num_timesteps / max(self.total_timesteps * self.anneal_fraction, 1.0)
+        return self.start_prob * max(0.0, 1.0 - frac)
+
+    def _restart(self, idx: np.ndarray, obs: np.ndarray) -> np.ndarray:
+        """Move sub-envs ``idx`` (just reset) to pool states with probability ``p``."""
+        self.n_starts += len(idx)
+        self.start_fraction[idx] = np.nan
+        p = self.current_prob
+        if p <= 0.0 or len(idx) == 0:
+            return obs
+        pick = idx[self.rng.random(len(idx)) < p]
+        if len(pick) == 0:
+            return obs
+        n_traj, n_pts = self.pool_times.shape
+        k = self.rng.integers(0, n_traj, len(pick))
+        lo = int(np.floor(self.min_time_fraction * n_pts))
+        hi = max(int(np.ceil(self.max_time_fraction * n_pts)), lo + 1)
+        j = self.rng.integers(lo, hi, len(pick))
+        self.start_fraction[pick] = j / n_pts
+        y = self.pool_states[k, j]
+        if self.start_noise_nd is not None:
+            y = self.family.perturb_starts(y, self.start_noise_nd, self.rng)
+        t_s = self.pool_times[k, j]
+        self.native.set_states(pick, y, t_s)
+        obs = np.array(obs, copy=True)
+        obs[pick] = self.native.observation_from_state(y, t_s)
+        self.n_curriculum_starts += len(pick)
+        return obs
+
+    def reset(self) -> np.ndarray:
+        obs = self.venv.reset()
+        return self._restart(np.arange(self.num_envs), obs)
+
+    def step_wait(self):
+        obs, rew, done, infos = self.venv.step_wait()
+        self.num_timesteps += self.num_envs
+        if done.any():
+            idx = np.flatnonzero(done)
+            for i in idx:
+                infos[i]["start_fraction"] = float(self.start_fraction[i])
+            obs = self._restart(idx, obs)
+        return obs, rew, done, infos
+
+    def curriculum_info(self) -> dict[str, Any]:
+        return {"p": self.current_prob,
+                "curriculum_starts": self.n_curriculum_starts,
+                "starts": self.n_starts}
