@@ -10,7 +10,7 @@ Every policy flies the **same** initial states: the native vector env is reset w
 and sub-env ``i`` draws its initial state with seed ``seed + i`` (the Gymnasium vector-env
 convention the env follows), so case ``i`` is the same for every policy and for any batch size
 that contains it. For each case the per-case optimum (minimum fuel, Pontryagin indirect shooting,
-:func:`optimizers.pontryagin.solve_many`) is computed from the very initial state the env drew.
+:func:`optimizers.indirect.batch.solve_many`) is computed from the very initial state the env drew.
 
 Policies
 --------
@@ -18,7 +18,7 @@ Policies
   deterministic actions, all landers in one batched forward pass.
 - ``OpenLoopPolicy``: replay of the per-case optimal control history φ(t) (sampled at the
   middle of each env step, held over the step as the env holds every action).
-- ``ExpertPolicy``: the closed-loop re-planning expert (:class:`optimizers.pontryagin.
+- ``ExpertPolicy``: the closed-loop re-planning expert (:class:`agents.experts.
   PontryaginExpert`), which re-solves from the current state. It costs a solve per decision, so
   by default it flies only the first ``--expert-states`` cases (its fuel gap is measured on
   those cases' optima).
@@ -213,7 +213,7 @@ class OpenLoopPolicy:
 class ExpertPolicy:
     """Closed-loop re-planning expert: re-solves the optimal control from every current state.
 
-    Wraps :class:`optimizers.pontryagin.PontryaginExpert` (planar env): one expert per case, so
+    Wraps :class:`agents.experts.PontryaginExpert` (planar env): one expert per case, so
     each re-plan is warm-started from that case's previous plan, called once per decision of a
     lander still flying with its SI state and the time since the start of its episode.
     """
@@ -417,7 +417,7 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
             print(f"Solving {n_states} per-case optimal controls (Pontryagin)...", flush=True)
         opt_fuel, sols, wall = optimal_solutions(scenario, states, progress=progress,
                                                  executor=optimum_executor)
-        opt_info = {"solver": "optimizers.pontryagin.solve_many",
+        opt_info = {"solver": "optimizers.indirect.batch.solve_many",
                     "converged": int(np.isfinite(opt_fuel).sum()),
                     "fuel_mean_kg": float(np.nanmean(opt_fuel)), "wall_s": wall}
         opt_tf = np.array([s.tf_s if s.success else np.nan for s in sols], dtype=np.float64)

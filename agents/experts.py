@@ -3,7 +3,7 @@
 :class:`PontryaginExpert` (planar landing) re-solves the minimum-fuel problem by Pontryagin
 shooting (:func:`optimizers.indirect.planar.solve_planar_min_fuel`) at every call, warm-started
 from its previous plan; it is the DAgger oracle of :mod:`agents.imitation` and a row of
-:mod:`agents.evaluate`. It moved here from ``optimizers.pontryagin`` (a policy is an agent, and
+:mod:`agents.evaluate`. It lives in agents/, not optimizers/ (a policy is an agent, and
 optimizers/ must not depend on agents/).
 """
 

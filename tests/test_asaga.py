@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from optimizers.asaga import ASAGA, paper_penalty_weights
 from optimizers.common.checkpoint import CheckpointMismatch
 from optimizers.common.problem import Problem
+from optimizers.evolutionary.asaga import ASAGA, paper_penalty_weights
 from optimizers.problems.landing import PlanarLandingProblem
 
 

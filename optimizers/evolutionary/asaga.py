@@ -95,7 +95,7 @@ class ASAGA(EvolutionaryAlgorithm):
 
     Examples
     --------
-    >>> from optimizers.asaga import ASAGA
+    >>> from optimizers.evolutionary.asaga import ASAGA
     >>> from optimizers.problems import PlanarLandingProblem
     >>> res = ASAGA(n_generations=5).solve(PlanarLandingProblem(), seed=0)
     >>> sorted(res.terminal_errors)

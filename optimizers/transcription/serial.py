@@ -2,10 +2,10 @@
 
 1. A coarse Gauss pseudospectral solve (N = 6 LG points) from the initial guess, itself solved
    feasible-first (phase 1: minimise the equality-constraint violation; phase 2: minimise tf
-   from there) — :class:`optimizers.gpm.GaussPseudospectral`.
+   from there) — :class:`optimizers.transcription.gpm.GaussPseudospectral`.
 2. Direct shooting on (N + 1)·K segments (K = 5), the node controls initialised by a cubic
-   spline through the GPM controls at the LG points — :class:`optimizers.direct_shooting.
-   DirectShooting`.
+   spline through the GPM controls at the LG points — :class:`optimizers.transcription.
+   direct_shooting.DirectShooting`.
 
 Initial guesses (decisions where the paper is silent: it says only "random initial values
 inside the constraint ranges"): a guess is a final time and (α, β) at the N LG points of that
