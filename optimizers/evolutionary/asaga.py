@@ -18,12 +18,13 @@ from typing import Any
 
 import numpy as np
 
+from ..common.penalties import penalised_fitness
 from ..common.problem import Problem
 from . import operators as ops
 from .base import EvolutionaryAlgorithm
-from .penalties import paper_penalty_weight, paper_penalty_weights, penalised_fitness
+from .penalties import paper_penalty_weight
 
-__all__ = ["ASAGA", "paper_penalty_weights", "paper_penalty_weight"]
+__all__ = ["ASAGA"]
 
 
 class ASAGA(EvolutionaryAlgorithm):

@@ -51,9 +51,7 @@ from ..common.problem import PenaltyGroup, Problem, central_difference_jacobian
 from ..common.result import ControlLaw, Trajectory
 from ..parameterisations import NodePolynomial
 
-__all__ = ["PlanarLandingProblem", "PenalisedProblem", "DEFAULT_N_STEPS"]
-
-from ..evolutionary.penalties import PenalisedProblem  # noqa: E402  (re-export, 0.1 API)
+__all__ = ["PlanarLandingProblem", "DEFAULT_N_STEPS"]
 
 DEFAULT_N_STEPS = 100
 # same threshold as lunar_env.integrators.integrate: threads cost more than they save below it
