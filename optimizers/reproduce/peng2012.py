@@ -46,7 +46,7 @@ import numpy as np
 from lunar_env import get_scenario
 from lunar_env.integrators import MOON3D, integrate_reference
 
-from ..common.certify import certify
+from ..certification import certify
 from ..indirect.pinpoint import solve_pinpoint_min_time
 from ..problems.pinpoint import PinpointOCP
 from ..transcription.serial import dense_collocation_check, get_solver, random_guess

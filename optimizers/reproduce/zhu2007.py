@@ -27,7 +27,7 @@ import numpy as np
 
 from lunar_env import get_scenario
 
-from ..common.certify import certify
+from ..certification import certify
 from ..common.result import OptimResult
 from ..evolutionary.asaga import ASAGA
 from ..problems.landing import PlanarLandingProblem

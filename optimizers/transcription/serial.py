@@ -339,7 +339,7 @@ def dense_collocation_check(result: OptimResult, problem="peng2012", *,
     transcription's control parameterisation and RK4 steps. Returns, per N, tf (s), fuel (kg),
     the IPOPT status, and the gap of the serial result to the densest converged one; the
     densest converged :class:`~optimizers.transcription.gpm.GPMSolution` is
-    ``out["reference_result"]`` (for :func:`optimizers.common.certify.certify`).
+    ``out["reference_result"]`` (for :func:`optimizers.certification.certify`).
     """
     ocp = _as_ocp(problem)
     s = ocp.scaling
