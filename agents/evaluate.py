@@ -433,7 +433,8 @@ def compare(env_id: str, policies: list[Policy], n_states: int = DEFAULT_N_STATE
                                executor=optimum_executor)
         opt_fuel = np.array([s.fuel_kg if s.success else np.nan for s in sols])
         opt_tf = np.array([s.tf_s if s.success else np.nan for s in sols])
-        opt_info = {"solver": "agents.pinpoint_optimum (serial GPM + direct shooting)",
+        opt_info = {"solver": "optimizers.transcription.batch.solve_many "
+                              "(serial GPM + direct shooting)",
                     "converged": int(np.isfinite(opt_fuel).sum()),
                     "fuel_mean_kg": float(np.nanmean(opt_fuel)) if np.isfinite(
                         opt_fuel).any() else float("nan"),
