@@ -8,12 +8,10 @@ from lunar_env.scenarios import get_scenario
 from optimizers.indirect.batch import solve_many
 from optimizers.indirect.planar import (
     PontryaginGuess,
-    hamiltonian,
-    optimal_thrust_angle,
     replay_reference,
     solve_planar_min_fuel,
 )
-from optimizers.indirect.planar_system import system_for
+from optimizers.indirect.planar_system import hamiltonian, optimal_thrust_angle, system_for
 from optimizers.transcription.collocation import solve_planar_min_time_collocation
 from optimizers.transcription.polynomial_shooting import solve_planar_min_time_polynomial
 

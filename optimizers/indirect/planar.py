@@ -122,7 +122,7 @@ from .planar_system import N_STATE, hamiltonian, optimal_thrust_angle, system_fo
 
 __all__ = [
     "PontryaginGuess", "PontryaginSolution", "solve_planar_min_fuel", "nominal_guess",
-    "optimal_thrust_angle", "hamiltonian", "replay_reference",
+    "replay_reference",
 ]
 
 _CHECKS = ("reference", "doubling", "grid")

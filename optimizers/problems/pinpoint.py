@@ -44,7 +44,7 @@ from ..common.casadi_tools import casadi as _casadi_module
 from ..common.ocp import OCP
 from ..parameterisations import piecewise_linear_control
 
-__all__ = ["PinpointOCP", "piecewise_linear_control"]
+__all__ = ["PinpointOCP"]
 
 
 def _ca():

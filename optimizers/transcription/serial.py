@@ -30,11 +30,12 @@ from scipy.interpolate import CubicSpline
 
 from lunar_env.scenarios import PinpointScenario, get_scenario
 
+from ..common.quadrature import legendre_gauss
 from ..common.result import ControlLaw, OptimResult, Trajectory
 from ..parameterisations import piecewise_linear_control
 from ..problems.pinpoint import PinpointOCP
 from .direct_shooting import DirectShooting, ShootingSolution, gauss_segment_fractions
-from .gpm import GaussPseudospectral, GPMGuess, GPMSolution, legendre_gauss
+from .gpm import GaussPseudospectral, GPMGuess, GPMSolution
 
 __all__ = [
     "ControlGuess", "nominal_guess", "random_guess", "guess_to_gpm", "solve_serial",
