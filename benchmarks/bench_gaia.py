@@ -13,7 +13,7 @@ every algorithm (default: one GAIA run with the paper's settings, 105 100 evalua
   is reported).
 - pygmo sade and cmaes (population 100, generations to fill the budget): they handle no
   constraints, so they minimise the same affinity through
-  :class:`~optimizers.evolutionary.penalties.PenalisedProblem` with GAIA's *final* weights held
+  :class:`~optimizers.problems.penalised.PenalisedProblem` with GAIA's *final* weights held
   fixed (σ = 20 under the default reading of eq. (4)).
 
 Reported per algorithm: success rate (the problem's verdict: on Mars' orbit within 1e5 km and
@@ -35,8 +35,8 @@ import numpy as np
 from optimizers.evolutionary.aga import AGA
 from optimizers.evolutionary.asaga import ASAGA
 from optimizers.evolutionary.gaia import GAIA
-from optimizers.evolutionary.penalties import PenalisedProblem
 from optimizers.problems.low_thrust import LowThrustTransferProblem
+from optimizers.problems.penalised import PenalisedProblem
 
 
 def _pygmo_run(name: str, pen: PenalisedProblem, budget: int, seed: int, n_pop: int):

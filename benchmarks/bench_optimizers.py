@@ -45,7 +45,8 @@ from lunar_env import get_scenario
 from lunar_env.dynamics import planar_eom
 from lunar_env.integrators import PLANAR, integrate_reference
 from optimizers.evolutionary.asaga import ASAGA
-from optimizers.problems.landing import PenalisedProblem, PlanarLandingProblem
+from optimizers.problems.landing import PlanarLandingProblem
+from optimizers.problems.penalised import PenalisedProblem
 
 
 def _pygmo_run(name: str, pen: PenalisedProblem, budget: int, seed: int, n_pop: int = 20):

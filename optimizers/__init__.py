@@ -7,14 +7,14 @@ Two problem contracts, one result, three families:
 - :class:`~optimizers.common.ocp.OCP` — an optimal-control problem for the transcriptions and
   the indirect solvers;
 - :class:`~optimizers.common.result.OptimResult` — what every solver returns;
-- :func:`~optimizers.common.certify.certify` — replay a result and compare it with the
+- :func:`~optimizers.certification.certify` — replay a result and compare it with the
   certified optimum;
 - families: :mod:`optimizers.evolutionary`, :mod:`optimizers.transcription`,
   :mod:`optimizers.indirect`; problems in :mod:`optimizers.problems`; paper reproductions in
   :mod:`optimizers.reproduce`.
 """
 
-from .common.certify import certify
+from .certification import certify
 from .common.ocp import OCP
 from .common.problem import Problem
 from .common.result import OptimResult

@@ -8,6 +8,7 @@ import pytest
 
 import agents.experts.pinpoint_optimum as po
 from agents.evaluation.compare import _summary, initial_states, rollout
+from optimizers.transcription.batch import PinpointOptimum
 
 ENV_ID = "LunarPinpointLanding-v0"
 
@@ -41,7 +42,7 @@ def test_optimum_from_env_states_is_cached_atomically(scenario, tmp_path, monkey
     def boom(*a, **k):
         raise AssertionError("a cached case was solved again")
 
-    monkeypatch.setattr(po, "solve_case", boom)
+    monkeypatch.setattr(po, "solve_many", boom)
     again = po.pinpoint_optima(scenario, states, cache_dir=tmp_path, progress=False)
     for a, b in zip(opts, again, strict=True):
         assert a.fuel_kg == b.fuel_kg
@@ -63,7 +64,7 @@ def test_bad_inputs(scenario, tmp_path):
         po.pinpoint_optima(scenario, np.zeros((2, 5)), cache_dir=tmp_path)
     with pytest.raises(ValueError, match="workers"):
         po.pinpoint_optima(scenario, np.zeros((2, 7)), cache_dir=tmp_path, workers=0)
-    failed = po.PinpointOptimum(False, float("nan"), float("nan"), message="x")
+    failed = PinpointOptimum(False, float("nan"), float("nan"), message="x")
     with pytest.raises(ValueError, match="failed"):
         failed.angles_at(1.0)
 

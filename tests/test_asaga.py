@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from optimizers.asaga import ASAGA, paper_penalty_weights
 from optimizers.common.checkpoint import CheckpointMismatch
 from optimizers.common.problem import Problem
+from optimizers.evolutionary.asaga import ASAGA
+from optimizers.evolutionary.penalties import paper_penalty_weight
 from optimizers.problems.landing import PlanarLandingProblem
 
 
@@ -21,8 +22,12 @@ def test_paper_defaults():
     assert a.temperature(1) == 10000.0
     assert a.temperature(300) == pytest.approx(10000 * 0.97**299)
     assert a.delta(1) == 0.5 and a.delta(300) == pytest.approx(0.5 / 300)
-    assert paper_penalty_weights(0, 300) == (5.0, 1.0)
-    assert paper_penalty_weights(300, 300) == pytest.approx((50.0, 10.0))
+    # [000] eq. (11): σ2 from 1 (first half) to 10 (T = Tmax); σ1 = 5σ2 is the problem's factor
+    assert a.penalty_weight is paper_penalty_weight
+    assert paper_penalty_weight(0, 300) == paper_penalty_weight(150, 300) == 1.0
+    assert paper_penalty_weight(300, 300) == pytest.approx(10.0)
+    groups = {g.name: g.factor for g in PlanarLandingProblem().penalty_groups()}
+    assert groups == {"velocity": 5.0, "radius": 1.0}
 
 
 def test_adaptive_rates_eq15_18():

@@ -5,7 +5,7 @@ import pytest
 
 from lunar_env import get_scenario
 from optimizers import OptimResult, certify
-from optimizers.common.certify import certified_optimum
+from optimizers.certification import certified_optimum
 from optimizers.evolutionary.asaga import ASAGA
 from optimizers.problems import PinpointOCP, PlanarLandingProblem, PlanarOCP
 from optimizers.transcription.serial import solve_serial

@@ -338,7 +338,7 @@ def test_other_planar_scenario_and_bad_scenario():
 
 def test_pontryagin_optimum_replayed_scores_at_least_as_well(optimal_cubic):
     """Second, independent reference: the indirect (Pontryagin) optimum of
-    :mod:`optimizers.pontryagin`, sampled at the step midpoints, lands softly and its return is
+    :mod:`optimizers.indirect.planar`, sampled at the step midpoints, lands softly and its return is
     at least that of the cubic law (it is the better optimum)."""
     from optimizers.indirect.planar import solve_planar_min_fuel
 

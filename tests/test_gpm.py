@@ -14,15 +14,11 @@ from lunar_env.integrators import MOON3D, integrate_reference
 from lunar_env.scaling import Scaling
 from optimizers.common.casadi_tools import casadi as _casadi
 from optimizers.common.ocp import OCP
-from optimizers.direct_shooting import DirectShooting, gauss_segment_fractions
-from optimizers.gpm import (
-    GaussPseudospectral,
-    GPMGuess,
-    gauss_differentiation_matrix,
-    legendre_gauss,
-)
+from optimizers.common.quadrature import gauss_differentiation_matrix, legendre_gauss
 from optimizers.problems.pinpoint import PinpointOCP
-from optimizers.serial_gpm_shooting import (
+from optimizers.transcription.direct_shooting import DirectShooting, gauss_segment_fractions
+from optimizers.transcription.gpm import GaussPseudospectral, GPMGuess
+from optimizers.transcription.serial import (
     guess_to_gpm,
     nominal_guess,
     random_guess,

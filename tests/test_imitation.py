@@ -69,7 +69,7 @@ def test_dataset_round_trip_and_version_check(small_dataset, tmp_path):
     again = dsm_data.load_dataset(path)
     assert again.meta["format_version"] == dsm_data.FORMAT_VERSION
     assert again.meta["scenario"] == "zhu2007" and again.meta["env_id"] == ENV_ID
-    assert again.meta["solver"]["name"] == "optimizers.pontryagin.solve_many"
+    assert again.meta["solver"]["name"] == "optimizers.indirect.batch.solve_many"
     for k, v in ds.arrays.items():
         np.testing.assert_array_equal(again.arrays[k], v)
     # re-save and reload: identical

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 from lunar_env.integrators import PLANAR, integrate_reference
-from optimizers.evolutionary.penalties import penalised_fitness
-from optimizers.problems.landing import DEFAULT_N_STEPS, PenalisedProblem, PlanarLandingProblem
+from optimizers.common.penalties import penalised_fitness
+from optimizers.problems.landing import DEFAULT_N_STEPS, PlanarLandingProblem
+from optimizers.problems.penalised import PenalisedProblem
 
 # Near the optimum of the cubic parameterisation (input only: found once by SLSQP; the node
 # values are not unique, the cubic they fit is).

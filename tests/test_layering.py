@@ -46,3 +46,17 @@ def test_no_import_points_up(pkg):
             if top in LAYER and LAYER[top] > LAYER[owner]:
                 bad.append(f"{module} imports {target}")
     assert not bad, "layering violations (agents -> optimizers -> lunar_env):\n" + "\n".join(bad)
+
+
+def test_optimizers_common_imports_nothing_above_it():
+    """optimizers.common is the floor of optimizers: it imports lunar_env and itself only, never a
+    problem, a family, the certification or the reproductions above it."""
+    bad = []
+    for _, module, path in _modules():
+        if not (module == "optimizers.common" or module.startswith("optimizers.common.")):
+            continue
+        for target in _imports(path, module):
+            if target.split(".")[0] == "optimizers" and not (
+                    target == "optimizers.common" or target.startswith("optimizers.common.")):
+                bad.append(f"{module} imports {target}")
+    assert not bad, "optimizers.common points up:\n" + "\n".join(bad)

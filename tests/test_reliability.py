@@ -580,7 +580,7 @@ def test_dataset_killed_at_random_points_slow(tmp_path, trial):
 
 _ASAGA_CLI = """
     import sys
-    from optimizers.asaga import ASAGA
+    from optimizers.evolutionary.asaga import ASAGA
     from optimizers.problems.landing import PlanarLandingProblem
     ASAGA(n_generations=int(sys.argv[2])).solve(PlanarLandingProblem(), seed=5,
                                                 checkpoint=sys.argv[1], checkpoint_every=1)
@@ -588,7 +588,7 @@ _ASAGA_CLI = """
 
 
 def _kill_and_resume_asaga(tmp_path, n_gen, rng):
-    from optimizers.asaga import ASAGA
+    from optimizers.evolutionary.asaga import ASAGA
     from optimizers.problems.landing import PlanarLandingProblem
 
     ck = tmp_path / "asaga.pkl"
@@ -619,7 +619,7 @@ def test_optimiser_killed_at_random_points_slow(tmp_path, trial):
 
 
 def test_damaged_optimiser_checkpoint_is_named(tmp_path):
-    from optimizers.asaga import ASAGA
+    from optimizers.evolutionary.asaga import ASAGA
     from optimizers.problems.landing import PlanarLandingProblem
 
     ck = tmp_path / "asaga.pkl"

@@ -11,7 +11,7 @@ import pytest
 from lunar_env import get_scenario
 from optimizers.problems.pinpoint import PinpointOCP
 from optimizers.reproduce import peng2012
-from optimizers.serial_gpm_shooting import solve_serial
+from optimizers.transcription.serial import solve_serial
 
 
 def test_quick_reproduction_json_structure(tmp_path):

@@ -26,9 +26,9 @@ from optimizers.indirect.planar import (
     PontryaginGuess,
     PontryaginSolution,
     nominal_guess,
-    optimal_thrust_angle,
     solve_planar_min_fuel,
 )
+from optimizers.indirect.planar_system import optimal_thrust_angle
 from optimizers.transcription.collocation import solve_planar_min_time_collocation
 
 __all__ = ["PontryaginExpert", "PlanarReplanningLaw", "PlanarOpenLoopLaw", "PlanarFamily",

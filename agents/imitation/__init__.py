@@ -22,7 +22,7 @@ SB3's ``ActorCriticPolicy`` and torch:
   policy branch + ``action_net``) is trained; the value branch is left for PPO.
 - **DAgger** ([Ross, Gordon & Bagnell 2011]): iteration i rolls out the current policy
   (β = 0: the first "expert" iteration is the BC dataset itself) in the native vector env,
-  labels visited states with the closed-loop expert :class:`optimizers.pontryagin.
+  labels visited states with the closed-loop expert :class:`agents.experts.planar.
   PontryaginExpert` (re-solves the optimal problem from the state), aggregates, and retrains
   the policy (warm-started) on the union, each minibatch mixing ``dagger_fraction`` DAgger
   labels with optimal-trajectory samples (``dagger_fraction: null``: all data pooled and drawn

@@ -12,7 +12,7 @@ Pipeline
 1. Initial states: ``scenario.sample_initial(np.random.default_rng(seed), n)`` (SI rows), the
    scenario's dispersion, the same draw the env's reset makes (but a different seed from the
    evaluation set, so the evaluation states are held out).
-2. Solver: :func:`optimizers.pontryagin.solve_many` (indirect shooting, each solve warm-started
+2. Solver: :func:`optimizers.indirect.batch.solve_many` (indirect shooting, each solve warm-started
    from its nearest neighbour in the chain). Decision (measured, not assumed): it is the fastest
    certified solver available here — ~12–19 ms per state serial on this loaded machine. A
    backward propagation of the state–costate system from the terminal set (CasADi, ``simpleRK``,
@@ -441,7 +441,7 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     shard_size : int
         Trajectories per shard (the unit of resumption).
     n_steps, check :
-        Passed to :func:`optimizers.pontryagin.solve_many`.
+        Passed to :func:`optimizers.indirect.batch.solve_many`.
     tol_radius_m, tol_speed_m_s : float, optional
         Certification tolerances. Soft landing: on the solver's terminal errors (default
         1e-3 m, 1e-3 m/s). Pinpoint: on the gate miss and gate speed of the expert's own flight
@@ -499,7 +499,7 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         rows = sc.sample_initial(np.random.default_rng(int(seed)), int(n))
         tol_radius_m = 1e-3 if tol_radius_m is None else tol_radius_m
         tol_speed_m_s = 1e-3 if tol_speed_m_s is None else tol_speed_m_s
-        solver_meta = {"name": "optimizers.pontryagin.solve_many", "n_steps": int(n_steps),
+        solver_meta = {"name": "optimizers.indirect.batch.solve_many", "n_steps": int(n_steps),
                        "check": check, "warm_start": "nearest-neighbour chain per shard"}
         cert_meta = {"tol_radius_m": tol_radius_m, "tol_speed_m_s": tol_speed_m_s,
                      "replay": "labels replayed open-loop in the native vector env; "

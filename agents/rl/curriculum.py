@@ -7,7 +7,7 @@ episode of an untrained policy ends in a crash at hundreds of m/s, so PPO sees a
 of what a landing looks like (measured: 0 successes in 2·10⁶ steps from the dispersion alone).
 
 What: with probability ``p`` an episode does not start from the scenario's dispersion but from a
-point of a minimum-fuel trajectory (Pontryagin, :func:`optimizers.pontryagin.solve_many`) of a
+point of a minimum-fuel trajectory (Pontryagin, :func:`optimizers.indirect.batch.solve_many`) of a
 dispersed case, at a uniformly drawn fraction of its flight time, with the episode clock set to
 that time (so the observation's time feature is consistent). Late starts teach the endgame first;
 ``p`` decays linearly from ``start_prob`` to 0 over the first ``anneal_fraction`` of training, so

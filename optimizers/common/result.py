@@ -99,7 +99,7 @@ class OptimResult:
     control : callable or None
         The control law ``u(t_s) -> ndarray (n_control,)`` of the answer on SI time since the
         start, throttle included (picklable, e.g. :class:`ControlLaw`); what
-        :func:`optimizers.common.certify.certify` replays. Read it with :meth:`control_at`.
+        :func:`optimizers.certification.certify` replays. Read it with :meth:`control_at`.
     """
 
     x: np.ndarray

@@ -1,5 +1,6 @@
 """Evolutionary algorithms from the papers on one base class (:mod:`.base`), sharing their GA
-operators (:mod:`.operators`) and penalties (:mod:`.penalties`).
+operators (:mod:`.operators`), penalty weight schedules (:mod:`.penalties`) and the
+problems' penalised fitness (:mod:`optimizers.common.penalties`).
 
 - :class:`~.asaga.ASAGA`: adaptive simulated-annealing GA, [000] Zhu & Xu 2007 (the template a
   new evolutionary algorithm copies).

@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
+from ..common.penalties import penalised_fitness
 from . import operators as ops
 from .base import EvolutionaryAlgorithm
 from .gaia import PENALTY_READINGS, annealed_penalty_weight
-from .penalties import penalised_fitness
 
 __all__ = ["AGA"]
 

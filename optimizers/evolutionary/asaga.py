@@ -18,12 +18,13 @@ from typing import Any
 
 import numpy as np
 
+from ..common.penalties import penalised_fitness
 from ..common.problem import Problem
 from . import operators as ops
 from .base import EvolutionaryAlgorithm
-from .penalties import paper_penalty_weight, paper_penalty_weights, penalised_fitness
+from .penalties import paper_penalty_weight
 
-__all__ = ["ASAGA", "paper_penalty_weights", "paper_penalty_weight"]
+__all__ = ["ASAGA"]
 
 
 class ASAGA(EvolutionaryAlgorithm):
@@ -95,7 +96,7 @@ class ASAGA(EvolutionaryAlgorithm):
 
     Examples
     --------
-    >>> from optimizers.asaga import ASAGA
+    >>> from optimizers.evolutionary.asaga import ASAGA
     >>> from optimizers.problems import PlanarLandingProblem
     >>> res = ASAGA(n_generations=5).solve(PlanarLandingProblem(), seed=0)
     >>> sorted(res.terminal_errors)

@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
+from ..common.penalties import penalised_fitness
 from ..common.problem import Problem
 from . import operators as ops
 from .base import EvolutionaryAlgorithm
-from .penalties import penalised_fitness
 
 __all__ = ["FGA"]
 
@@ -70,9 +70,10 @@ class FGA(EvolutionaryAlgorithm):
     -----------------------------------
     - *Performance index with constraints.* The paper sorts by "the performance index" and
       does not say how the 6 boundary equalities enter; the index is the penalised objective
-      ``fuel + w·Σ groups`` of :func:`~.penalties.penalised_fitness` (maximised as its
-      negative), with a static weight. For :class:`~optimizers.problems.ThrustDesignProblem`
-      (kg, m/s, m) w = 1 is an exact penalty (its docstring gives the multipliers).
+      ``fuel + w·Σ groups`` of :func:`~optimizers.common.penalties.penalised_fitness`
+      (maximised as its negative), with a static weight. For
+      :class:`~optimizers.problems.ThrustDesignProblem` (kg, m/s, m) w = 1 is an exact penalty
+      (its docstring gives the multipliers).
     - *Elitist selection* (step 3): truncation — the ``n_elite`` best individuals survive
       unchanged (so the best never worsens) and are the mating pool; the other
       ``n_pop − n_elite`` places are filled with their offspring (steps 4–5), so only the

@@ -13,10 +13,10 @@ from typing import Any
 
 import numpy as np
 
+from ..common.penalties import penalised_fitness
 from ..common.problem import Problem
 from . import operators as ops
 from .base import EvolutionaryAlgorithm
-from .penalties import penalised_fitness
 
 __all__ = ["GAIA", "AIA", "annealed_penalty_weight", "PENALTY_READINGS"]
 

@@ -57,7 +57,7 @@ Robust start
 2. if Newton fails from it: continuation in the initial state from the guess's own initial
    state to the requested one (adaptive steps);
 3. otherwise (and when no guess is given): costates estimated from the defect multipliers of a
-   coarse direct collocation (:mod:`optimizers.planar_collocation`, CasADi + IPOPT), which
+   coarse direct collocation (:mod:`optimizers.transcription.collocation`, CasADi + IPOPT), which
    converges from a straight-line guess.
 
 Accuracy check
@@ -71,11 +71,12 @@ Paper 000's nominal case
 ------------------------
 ``zhu2007`` (g0 = 9.8 as in the paper): fuel **277.58520 kg**, tf **604.51888 s**, final thrust
 angle 35.4°; terminal errors on the DOP853 replay ≈ 2e-7 m and 4e-10 m/s. An independent
-direct method, Hermite–Simpson collocation with IPOPT (:mod:`optimizers.planar_collocation`,
-100 intervals), gives 277.585200 kg (agreement < 1e-6 kg, tested); a second one, direct
-shooting over degree-7 polynomial angles through the compiled RK4 of
-:func:`lunar_env.integrators.integrate` (:mod:`optimizers.planar_direct_shooting`), gives
-277.585200 kg; the best *cubic* (paper 000's control family) 277.585210 kg.
+direct method, Hermite–Simpson collocation with IPOPT
+(:mod:`optimizers.transcription.collocation`, 100 intervals), gives 277.585200 kg (agreement
+< 1e-6 kg, tested); a second one, direct shooting over degree-7 polynomial angles through the
+compiled RK4 of :func:`lunar_env.integrators.integrate`
+(:mod:`optimizers.transcription.polynomial_shooting`), gives 277.585200 kg; the best *cubic*
+(paper 000's control family) 277.585210 kg.
 
 The paper reports 277.5765 kg, 0.0087 kg (0.003 %) less. Not explained by constants: g0 =
 9.80665 instead of 9.8 moves our optimum to 277.4571 kg (−0.128 kg), μ = 4902.8026 km³/s² to
@@ -121,7 +122,7 @@ from .planar_system import N_STATE, hamiltonian, optimal_thrust_angle, system_fo
 
 __all__ = [
     "PontryaginGuess", "PontryaginSolution", "solve_planar_min_fuel", "nominal_guess",
-    "optimal_thrust_angle", "hamiltonian", "replay_reference",
+    "replay_reference",
 ]
 
 _CHECKS = ("reference", "doubling", "grid")

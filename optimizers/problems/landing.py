@@ -51,9 +51,7 @@ from ..common.problem import PenaltyGroup, Problem, central_difference_jacobian
 from ..common.result import ControlLaw, Trajectory
 from ..parameterisations import NodePolynomial
 
-__all__ = ["PlanarLandingProblem", "PenalisedProblem", "DEFAULT_N_STEPS"]
-
-from ..evolutionary.penalties import PenalisedProblem  # noqa: E402  (re-export, 0.1 API)
+__all__ = ["PlanarLandingProblem", "DEFAULT_N_STEPS"]
 
 DEFAULT_N_STEPS = 100
 # same threshold as lunar_env.integrators.integrate: threads cost more than they save below it
@@ -299,7 +297,7 @@ class PlanarLandingProblem(Problem):
 
     def replay_verdict(self, errors: dict[str, float], path: dict[str, float]
                        ) -> tuple[bool, str]:
-        """Verdict on a reference replay (:func:`optimizers.common.certify.certify`): this
+        """Verdict on a reference replay (:func:`optimizers.certification.certify`): this
         problem's terminal tolerances and the OCP's path conditions."""
         ok, why = self.success_from(None, None, errors, True)
         if ok:
@@ -329,7 +327,7 @@ class PlanarLandingProblem(Problem):
     def ocp(self):
         """The continuous problem this parameterisation approximates
         (:class:`~optimizers.problems.planar_ocp.PlanarOCP`, same scenario and initial state):
-        its certified optimum is what :func:`optimizers.common.certify.certify` compares with."""
+        its certified optimum is what :func:`optimizers.certification.certify` compares with."""
         from .planar_ocp import PlanarOCP
 
         return PlanarOCP(self.scenario, self.scenario.nd_to_si(self.y0_nd, self.scaling))

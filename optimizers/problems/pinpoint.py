@@ -44,7 +44,7 @@ from ..common.casadi_tools import casadi as _casadi_module
 from ..common.ocp import OCP
 from ..parameterisations import piecewise_linear_control
 
-__all__ = ["PinpointOCP", "piecewise_linear_control"]
+__all__ = ["PinpointOCP"]
 
 
 def _ca():
@@ -206,7 +206,7 @@ class PinpointOCP(OCP):
         tu, tv, tw = self.target_uvw_nd
         return ca.vertcat(pos, u - tu, v - tv, w - tw)
 
-    # ---- the transcription protocol (see optimizers.gpm) -----------------------------------
+    # ---- the transcription protocol (see optimizers.transcription.gpm) ---------------------
     @property
     def initial_state(self) -> np.ndarray:
         return self.x0_nd

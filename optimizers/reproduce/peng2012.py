@@ -3,7 +3,7 @@
 ``python -m optimizers.reproduce peng2012 [--guesses N] [--quick] [--json FILE] [--out DIR]
 [--seed S] [--no-plots] [--no-dense] [--no-env]``
 
-1. The serial strategy (:func:`optimizers.serial_gpm_shooting.solve_serial`: N = 6 GPM solved
+1. The serial strategy (:func:`optimizers.transcription.serial.solve_serial`: N = 6 GPM solved
    feasible-first, then direct shooting on 35 segments) from the nominal guess (brake along the
    track for the rocket-equation burn time) — the paper's table 1 (GPM controls) and final tf,
    fuel.
@@ -12,7 +12,7 @@
    converged).
 3. The converged-optimum check: single-interval LG collocation with 20 and 40 nodes from the
    serial solution (spectral convergence to the continuous optimum), an indirect Pontryagin
-   solution (:mod:`optimizers.pontryagin_pinpoint`), and the serial control replayed by an
+   solution (:mod:`optimizers.indirect.pinpoint`), and the serial control replayed by an
    adaptive DOP853 integrator.
 4. The control re-solved on a finer RK4 grid (lifted form, 4 steps per segment) and replayed
    open loop in ``LunarPinpointLanding-v0`` (action held over 0.02 s steps: the average of the
@@ -46,7 +46,7 @@ import numpy as np
 from lunar_env import get_scenario
 from lunar_env.integrators import MOON3D, integrate_reference
 
-from ..common.certify import certify
+from ..certification import certify
 from ..indirect.pinpoint import solve_pinpoint_min_time
 from ..problems.pinpoint import PinpointOCP
 from ..transcription.serial import dense_collocation_check, get_solver, random_guess

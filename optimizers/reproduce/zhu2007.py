@@ -5,7 +5,7 @@
 
 Runs ASAGA (paper settings) ``--runs`` times (default 10, as the paper) on
 :class:`~optimizers.problems.PlanarLandingProblem`, solves the same problem by Pontryagin
-shooting (:func:`optimizers.pontryagin.solve_planar_min_fuel`, the true optimum) and, as a
+shooting (:func:`optimizers.indirect.planar.solve_planar_min_fuel`, the true optimum) and, as a
 second independent method, by SLSQP on the paper's own cubic parameterisation (the best any
 run of ASAGA could reach). Prints published against measured values, writes JSON with keys
 ``published`` and ``measured``, and saves the figures of the paper (fig. 3–7) as PNGs in
@@ -27,7 +27,7 @@ import numpy as np
 
 from lunar_env import get_scenario
 
-from ..common.certify import certify
+from ..certification import certify
 from ..common.result import OptimResult
 from ..evolutionary.asaga import ASAGA
 from ..problems.landing import PlanarLandingProblem

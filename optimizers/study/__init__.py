@@ -11,7 +11,7 @@ Run ``i`` of a study with master seed ``s`` is seeded with ``SeedSequence(s).spa
 same stream as run ``i`` of ``python -m optimizers.reproduce zhu2007 --seed s``), so its result
 does not depend on ``n``, on the executor or on which worker ran it. Each run is one executor
 task keyed ``(problem fingerprint, seed, i)``; its row (the problem's verdict, fuel, terminal
-errors, wall time, and the :func:`~optimizers.common.certify.certify` certificate: a DOP853
+errors, wall time, and the :func:`~optimizers.certification.certify` certificate: a DOP853
 replay judged by the problem and the fuel gap to the problem's certified optimum) is written
 atomically to ``<out>/results/`` as soon as it finishes. An interrupted study rerun with the
 same command does only the missing runs; a larger ``--runs`` extends it. The study's identity
@@ -70,7 +70,7 @@ def run_one(algorithm: str, settings: dict, problem: str, problem_kwargs: dict, 
         ``terminal_errors``, ``fun``, ``n_fevals``, ``n_iter``, ``wall_s``, ``cpu_s``, ``x``,
         ``message``, ``certificate`` (or None) and ``certify_error`` (why not, if it failed).
     """
-    from ..common.certify import certify
+    from ..certification import certify
 
     prob = _problem(problem, _items(problem_kwargs))
     algo = make_algorithm(algorithm, **settings)
@@ -139,7 +139,7 @@ def run_study(algorithm: str, problem: str, n_runs: int, *, seed: int = 0,
     reference = None
     optimum: dict[str, Any] = {}
     if certify_runs:
-        from ..common.certify import certified_optimum
+        from ..certification import certified_optimum
 
         t0 = time.perf_counter()
         try:

@@ -1,7 +1,7 @@
 """pygmo's unconstrained optimisers as study algorithms (``solve(problem, seed) -> OptimResult``).
 
 sade, cmaes and pso handle no constraints: they minimise the problem's penalty function
-(:class:`~optimizers.evolutionary.penalties.PenalisedProblem`, the penalty of [000] eq. (11)
+(:class:`~optimizers.problems.penalised.PenalisedProblem`, the penalty of [000] eq. (11)
 with a fixed weight, as in ``benchmarks/bench_optimizers.py``). The verdict on the champion is
 the original problem's (:meth:`~optimizers.common.problem.Problem.assess`), as for every solver.
 """
@@ -15,7 +15,7 @@ import numpy as np
 
 from ..common.problem import Problem
 from ..common.result import OptimResult
-from ..evolutionary.penalties import PenalisedProblem
+from ..problems.penalised import PenalisedProblem
 
 __all__ = ["PygmoAlgorithm", "PygmoCMAES", "PygmoSADE", "PygmoPSO"]
 

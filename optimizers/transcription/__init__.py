@@ -1,4 +1,5 @@
 """Direct transcriptions of optimal-control problems (:class:`optimizers.common.ocp.OCP`):
 Gauss pseudospectral collocation (:mod:`.gpm`), direct shooting (:mod:`.direct_shooting`), the
-serial GPM → shooting strategy of [001] (:mod:`.serial`), Hermite–Simpson collocation
-(:mod:`.collocation`) and polynomial single shooting (:mod:`.polynomial_shooting`)."""
+serial GPM → shooting strategy of [001] (:mod:`.serial`) and its per-case optima over a batch
+of initial states (:mod:`.batch`), Hermite–Simpson collocation (:mod:`.collocation`) and
+polynomial single shooting (:mod:`.polynomial_shooting`)."""

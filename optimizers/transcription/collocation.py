@@ -25,8 +25,8 @@ Costate estimate. CasADi reports IPOPT's multipliers ν with the Lagrangian
 L = tf + Σ ν_kᵀ g_k. For the Simpson defect g_k = x_{k+1} − x_k − h/6(...), stationarity in x_k
 gives ν_k − ν_{k−1} ≈ −h ν ∂f/∂x, the costate equation λ' = −∂H/∂x; stationarity in tf gives
 1 − mean_k(ν_k·f_k) ≈ 0. With the Pontryagin normalisation H = 1 + λᵀf = 0 of
-:mod:`optimizers.pontryagin` (λ0 = 1), the costate is therefore λ(t_{k+½}) ≈ −ν_k, which is what
-:attr:`CollocationSolution.costates_nd` holds (checked in the tests: the thrust angle that
+:mod:`optimizers.indirect.planar` (λ0 = 1), the costate is therefore λ(t_{k+½}) ≈ −ν_k, which
+is what :attr:`CollocationSolution.costates_nd` holds (checked in the tests: the thrust angle that
 minimises H with these costates matches the collocated angle).
 """
 

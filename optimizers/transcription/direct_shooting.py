@@ -134,7 +134,7 @@ class DirectShooting:
     n_rk4_per_segment : int
         RK4 steps per segment.
     tol, max_iter, max_wall_s, verbose :
-        IPOPT settings (see :func:`optimizers.gpm.ipopt_options`).
+        IPOPT settings (see :func:`optimizers.common.casadi_tools.ipopt_options`).
     """
 
     def __init__(self, fractions: np.ndarray | None = None, *, n_rk4_per_segment: int = 2,
@@ -250,7 +250,7 @@ class DirectShooting:
 
         Parameters
         ----------
-        ocp : problem following the protocol of :mod:`optimizers.gpm`
+        ocp : problem following the protocol of :mod:`optimizers.transcription.gpm`
         tf_nd : float
             Guess of the final time.
         node_controls : ndarray, shape (n_nodes, n_control)

@@ -48,10 +48,7 @@ from ..common.quadrature import (
 )
 from ..common.result import OptimResult
 
-__all__ = [
-    "legendre_gauss", "gauss_differentiation_matrix", "GaussPseudospectral", "GPMGuess",
-    "GPMSolution", "ipopt_options",
-]
+__all__ = ["GaussPseudospectral", "GPMGuess", "GPMSolution"]
 
 
 @dataclass

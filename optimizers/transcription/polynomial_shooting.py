@@ -46,8 +46,8 @@ class PolynomialShootingSolution(OptimResult):
 
     chebyshev_coefs: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
-    def thrust_angle_at(self, t_s, scenario=None) -> np.ndarray:
-        """φ (rad) at times ``t_s`` (s) (``scenario``: accepted for the 0.1 API, unused)."""
+    def thrust_angle_at(self, t_s) -> np.ndarray:
+        """φ (rad) at times ``t_s`` (s), any shape (the same shape back)."""
         x = 2.0 * np.asarray(t_s, dtype=np.float64) / self.tf_s - 1.0
         return np.polynomial.chebyshev.chebval(x, self.chebyshev_coefs)
 

@@ -2,10 +2,10 @@
 
 1. A coarse Gauss pseudospectral solve (N = 6 LG points) from the initial guess, itself solved
    feasible-first (phase 1: minimise the equality-constraint violation; phase 2: minimise tf
-   from there) — :class:`optimizers.gpm.GaussPseudospectral`.
+   from there) — :class:`optimizers.transcription.gpm.GaussPseudospectral`.
 2. Direct shooting on (N + 1)·K segments (K = 5), the node controls initialised by a cubic
-   spline through the GPM controls at the LG points — :class:`optimizers.direct_shooting.
-   DirectShooting`.
+   spline through the GPM controls at the LG points — :class:`optimizers.transcription.
+   direct_shooting.DirectShooting`.
 
 Initial guesses (decisions where the paper is silent: it says only "random initial values
 inside the constraint ranges"): a guess is a final time and (α, β) at the N LG points of that
@@ -30,11 +30,12 @@ from scipy.interpolate import CubicSpline
 
 from lunar_env.scenarios import PinpointScenario, get_scenario
 
+from ..common.quadrature import legendre_gauss
 from ..common.result import ControlLaw, OptimResult, Trajectory
 from ..parameterisations import piecewise_linear_control
 from ..problems.pinpoint import PinpointOCP
 from .direct_shooting import DirectShooting, ShootingSolution, gauss_segment_fractions
-from .gpm import GaussPseudospectral, GPMGuess, GPMSolution, legendre_gauss
+from .gpm import GaussPseudospectral, GPMGuess, GPMSolution
 
 __all__ = [
     "ControlGuess", "nominal_guess", "random_guess", "guess_to_gpm", "solve_serial",
@@ -339,7 +340,7 @@ def dense_collocation_check(result: OptimResult, problem="peng2012", *,
     transcription's control parameterisation and RK4 steps. Returns, per N, tf (s), fuel (kg),
     the IPOPT status, and the gap of the serial result to the densest converged one; the
     densest converged :class:`~optimizers.transcription.gpm.GPMSolution` is
-    ``out["reference_result"]`` (for :func:`optimizers.common.certify.certify`).
+    ``out["reference_result"]`` (for :func:`optimizers.certification.certify`).
     """
     ocp = _as_ocp(problem)
     s = ocp.scaling

@@ -8,6 +8,9 @@ the problem's certified optimum (:func:`certified_optimum`: Pontryagin for the p
 dense Legendre–Gauss collocation for the pinpoint landing), or with a
 ``reference`` the caller supplies. Every reproduction reports its solvers through it.
 
+It sits above the families (it dispatches to their certifiers), not in
+:mod:`optimizers.common`, which imports nothing above it.
+
 >>> from optimizers.problems import PlanarLandingProblem        # doctest: +SKIP
 >>> cert = certify(ASAGA().solve(problem, seed=0), problem)     # doctest: +SKIP
 >>> cert.fuel_gap_kg, cert.replay_success                       # doctest: +SKIP
@@ -21,7 +24,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .result import OptimResult
+from .common.result import OptimResult
 
 __all__ = ["Certificate", "certify", "certified_optimum", "replay_reference"]
 
@@ -91,15 +94,16 @@ def certified_optimum(ocp) -> OptimResult:
     cached = _CERTIFIED.get(ocp)
     if cached is not None:
         return cached
-    from ..problems.pinpoint import PinpointOCP
-    from ..problems.planar_ocp import PlanarOCP
+    # imported here: ``import optimizers`` (which exports certify) stays free of CasADi
+    from .problems.pinpoint import PinpointOCP
+    from .problems.planar_ocp import PlanarOCP
 
     if isinstance(ocp, PlanarOCP):
-        from ..indirect.planar import solve_planar_min_fuel
+        from .indirect.planar import solve_planar_min_fuel
 
         ref = solve_planar_min_fuel(ocp, check="reference")
     elif isinstance(ocp, PinpointOCP):
-        from ..transcription.serial import certified_optimum as dense_optimum
+        from .transcription.serial import certified_optimum as dense_optimum
 
         ref = dense_optimum(ocp)
     else:
