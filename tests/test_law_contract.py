@@ -1,0 +1,140 @@
+"""The guidance-law contract (agents.common.law): what a law is given, what it may not see, and
+how a new law is flown by the evaluation."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from agents.common.law import (
+    PRIVILEGED_MARK,
+    ActionSequenceLaw,
+    CallableLaw,
+    FlightComputer,
+    GuidanceLaw,
+    Navigation,
+    PrivilegedLaw,
+    Truth,
+    law_label,
+)
+from agents.common.rollout import fly
+from agents.evaluation.compare import compare, rollout
+
+ENV_ID = "LunarSoftLanding-v0"
+
+
+class ConstantAttitude(GuidanceLaw):
+    """The module docstring's example: a new law in ten lines."""
+
+    name = "constant attitude"
+
+    def __init__(self, action):
+        self.action = np.asarray(action, dtype=np.float32)
+
+    def act(self, nav):
+        return np.broadcast_to(self.action, (nav.n, self.action.size)).copy()
+
+
+class Recorder(GuidanceLaw):
+    name = "recorder"
+
+    def __init__(self):
+        self.calls: list[Navigation] = []
+
+    def reset(self, computer, case_ids):
+        super().reset(computer, case_ids)
+        self.case_ids = np.asarray(case_ids)
+
+    def act(self, nav):
+        self.calls.append(nav)
+        return np.zeros((nav.n, 1), dtype=np.float32)
+
+
+class Teacher(PrivilegedLaw):
+    name = "teacher"
+
+    def __init__(self):
+        self.truths: list[Truth] = []
+
+    def act_privileged(self, nav, truth):
+        self.truths.append(truth)
+        return np.zeros((nav.n, 1), dtype=np.float32)
+
+
+def test_a_new_law_is_flown_by_the_evaluation_beside_the_baselines():
+    rep = compare(ENV_ID, [ConstantAttitude([0.2])], n_states=3, seed=11, n_expert_states=0,
+                  progress=False)
+    names = [r["policy"] for r in rep["rows"]]
+    assert names == ["constant attitude", "Pontryagin open loop"]
+    row = rep["rows"][0]
+    assert row["n_cases"] == 3 and 0.0 <= row["success_rate"] <= 1.0
+    # the open-loop optimum lands every case at the optimum's fuel
+    assert rep["rows"][1]["success_rate"] == 1.0
+    assert abs(rep["rows"][1]["fuel_gap_pct"]) < 0.05
+
+
+def test_an_ordinary_law_gets_the_flight_computer_and_navigation_only():
+    law = Recorder()
+    fly(ENV_ID, law, 4, seed=3)
+    comp = law.computer
+    assert isinstance(comp, FlightComputer)
+    assert comp.env_id == ENV_ID and comp.dt_s > 0 and not comp.has_target
+    assert comp.physical_constants()["thrust_n"] > 0
+    np.testing.assert_array_equal(law.case_ids, np.arange(4))
+    nav = law.calls[0]
+    assert {f.name for f in dataclasses.fields(nav)} == {"obs", "state_nd", "t_s", "active"}
+    assert nav.obs.shape == (4, 5) and nav.state_nd.shape == (4, 5)
+    np.testing.assert_array_equal(nav.t_s, np.zeros(4))
+    assert nav.active.all()
+    # the observation decodes to the navigation solution's quantities
+    q = comp.observation_quantities(nav.obs)
+    assert set(q) >= {"altitude_m", "radial_velocity_m_s", "propellant_kg", "time_s"}
+    # later decisions: landers that ended are inactive, and their rows keep being passed
+    assert any(not c.active.all() for c in law.calls[1:])
+
+
+def test_a_privileged_law_is_given_the_truth_and_marked_in_tables():
+    teacher = Teacher()
+    fly(ENV_ID, teacher, 2, seed=3, max_steps=5_000)
+    assert teacher.truths and teacher.truths[0].state_nd.shape == (2, 5)
+    assert law_label(teacher) == "teacher" + PRIVILEGED_MARK
+    assert law_label(ConstantAttitude([0.0])) == "constant attitude"
+    res = rollout(ENV_ID, Teacher(), 2, seed=3, trace_cases=0)
+    assert res.name.endswith(PRIVILEGED_MARK)
+    with pytest.raises(TypeError, match="privileged"):
+        teacher.act(None)
+
+
+def test_a_law_must_implement_act():
+    class Nothing(GuidanceLaw):
+        pass
+
+    with pytest.raises(TypeError, match="abstract"):
+        Nothing()
+
+
+def test_non_finite_actions_are_refused_with_the_law_named():
+    bad = CallableLaw(lambda nav: np.full((nav.n, 1), np.nan, np.float32), name="bad law")
+    with pytest.raises(FloatingPointError, match="bad law"):
+        fly(ENV_ID, bad, 2, seed=0)
+
+
+def test_action_sequences_replay_per_case_and_hold_the_last_action():
+    law = ActionSequenceLaw([np.array([[0.1], [0.2]]), np.array([[0.3]])])
+    comp = FlightComputer.of(_env(), ENV_ID)
+    law.reset(comp, np.arange(2))
+    nav = Navigation(np.zeros((2, 5), np.float32), np.zeros((2, 5)), np.zeros(2),
+                     np.ones(2, bool))
+    np.testing.assert_allclose(law.act(nav), [[0.1], [0.3]], rtol=0, atol=1e-7)
+    np.testing.assert_allclose(law.act(nav), [[0.2], [0.3]], rtol=0, atol=1e-7)
+    np.testing.assert_allclose(law.act(nav), [[0.2], [0.3]], rtol=0, atol=1e-7)
+
+
+def _env():
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+
+    return gym.make(ENV_ID).unwrapped
