@@ -15,13 +15,8 @@ import argparse
 import json
 import os
 
-from agents.imitation.dataset import (
-    DEFAULT_ENV_ID,
-    DEFAULT_OUT,
-    PINPOINT_ACTION_NOISE,
-    PINPOINT_TOLERANCES,
-    generate,
-)
+from agents.experts.pinpoint_data import PINPOINT_ACTION_NOISE, PINPOINT_TOLERANCES
+from agents.imitation.dataset import DEFAULT_ENV_ID, DEFAULT_OUT, generate
 
 __all__ = ["main"]
 

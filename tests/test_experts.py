@@ -65,3 +65,41 @@ def test_expert_bad_input_raises(scenario):
         expert(np.array([1.75e6, 0.0, 0.0, np.inf, 600.0]))
     with pytest.raises(ValueError, match="shape"):
         expert(np.zeros((2, 3)))
+
+
+# ----------------------------------------------------------------------------- dataset recipes
+
+
+def test_dataset_recipes_of_both_families():
+    """Each family answers what its imitation dataset is made of (rows, names, tolerances,
+    label rule, a module-level shard task), and refuses options it does not take."""
+    from agents.experts.family import DatasetRecipe
+    from agents.experts.flights import make_env
+    from agents.experts.registry import family_of
+    from optimizers.common.executor import check_importable
+
+    opts = {"n_steps": 200, "check": "grid", "tol_radius_m": None, "tol_speed_m_s": None}
+    planar_sc = get_scenario("zhu2007")
+    rec = family_of(planar_sc).dataset_recipe(planar_sc, 3, 4, action_noise=None, **opts)
+    assert isinstance(rec, DatasetRecipe) and rec.rows.shape == (3, 5)
+    np.testing.assert_array_equal(
+        rec.rows, planar_sc.sample_initial(np.random.default_rng(4), 3))  # SI rows
+    assert rec.tolerances == (1e-3, 1e-3) and len(rec.observation_names) == 5
+    assert rec.job_args == {"n_steps": 200, "check": "grid"}
+    assert check_importable(rec.shard_fn).__module__ == "agents.experts.planar_data"
+    with pytest.raises(ValueError, match="action_noise = 0.1: defined for the pinpoint env"):
+        family_of(planar_sc).dataset_recipe(planar_sc, 3, 4, action_noise=0.1, **opts)
+
+    env = make_env("LunarPinpointLanding-v2", None)
+    pp_sc = env.scenario
+    env.close()
+    fam = family_of(pp_sc)
+    rec = fam.dataset_recipe(pp_sc, 2, 0, action_noise=None,
+                             **dict(opts, tol_speed_m_s=3.0))
+    assert rec.rows.shape == (2, 7) and rec.tolerances == (500.0, 3.0)
+    assert len(rec.observation_names) == env.observation_space.shape[0]
+    assert rec.job_args == {"action_noise": 0.02} and rec.solver["action_noise"] == 0.02
+    assert check_importable(rec.shard_fn).__module__ == "agents.experts.pinpoint_data"
+    for bad in (-0.1, float("nan")):
+        with pytest.raises(ValueError, match="action_noise = .* must be finite and >= 0"):
+            fam.dataset_recipe(pp_sc, 2, 0, action_noise=bad, **opts)

@@ -209,3 +209,52 @@ def test_critic_warmup_holds_the_cloned_actor_and_trains_the_value(bc_dir, tmp_p
         train.main(["--quick", "--run-dir", str(tmp_path / "bad"), "--no-eval",
                     "--no-progress", "--no-tensorboard", "-n", "64",
                     "--hyperparams", "critic_warmup_steps=-1"])
+
+
+#: tasks run by :func:`_counting_label_chunk` (module level: the executor refuses closures),
+#: and the real task it delegates to
+_LABEL_CALLS: list[int] = []
+_REAL_LABEL_CHUNK: list = []
+
+
+def _counting_label_chunk(job):
+    _LABEL_CALLS.append(len(job["episodes"]))
+    return _REAL_LABEL_CHUNK[0](job)
+
+
+def test_dagger_label_parts_resume_from_the_result_store(small_dataset, tmp_path, monkeypatch):
+    """Planar DAgger labels are executor tasks with a ResultStore: a re-run reuses every stored
+    part and labels only the missing ones (a kill loses only the tasks in flight), with the
+    same labels."""
+    import agents.experts.planar_data as pd
+    from lunar_env import get_scenario
+
+    _, ds = small_dataset
+    eps = []
+    for j in range(2):  # two optimal trajectories of the dataset as "roll-outs"
+        m = ds.arrays["traj_index"] == j
+        eps.append({"obs": ds.observations[m], "state_nd": ds.arrays["state_nd"][m],
+                    "t_s": ds.arrays["t_s"][m]})
+    sc = get_scenario(ds.meta["scenario"])
+    args = (eps, sc.name, float(ds.meta["dt_s"]), 40, 0.0)
+    kw = {"progress": False, "velocity_ref_m_s": sc.scaling().velocity_m_s}
+    store = tmp_path / "parts"
+    _REAL_LABEL_CHUNK[:] = [pd.label_chunk]
+    monkeypatch.setattr(pd, "label_chunk", _counting_label_chunk)
+    _LABEL_CALLS.clear()
+    first = pd.label_episodes(*args, cache_dir=store, **kw)
+    assert _LABEL_CALLS == [1, 1] and len(first["obs"]) > 0
+    parts = sorted((store / "results").glob("*.pkl"))
+    assert len(parts) == 2
+    parts[1].unlink()  # as if killed while the second task ran
+    _LABEL_CALLS.clear()
+    again = pd.label_episodes(*args, cache_dir=store, **kw)
+    assert _LABEL_CALLS == [1]  # only the missing part was labelled again
+    for k in first:
+        np.testing.assert_array_equal(again[k], first[k], err_msg=k)
+    # labels of other settings never mix with the stored ones
+    with pytest.raises(ValueError, match="label_every"):
+        pd.label_episodes(eps, sc.name, float(ds.meta["dt_s"]), 20, 0.0, cache_dir=store, **kw)
+    # another family's scenario is refused by name
+    with pytest.raises(ValueError, match="'wang2001_transfer' is not a planar scenario"):
+        pd.label_episodes(eps, "wang2001_transfer", 1.0, 40, 0.0, progress=False)

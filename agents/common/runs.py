@@ -35,7 +35,7 @@ from optimizers.common.processes import exit_with_parent
 __all__ = ["CKPT_RE", "next_run_dir", "claim_run_dir", "run_dir_of", "read_run", "checkpoints",
            "latest_checkpoint", "resumable_checkpoint", "load_trained", "write_text_atomic",
            "save_model_atomic", "save_vecnormalize_atomic", "algo_class", "newest_loadable",
-           "exit_with_parent", "process_pool"]
+           "exit_with_parent"]
 
 CKPT_RE = re.compile(r"^rl_model_(\d+)_steps\.zip$")
 
@@ -313,15 +313,3 @@ def load_trained(run_dir_or_model: str | Path, env=None, device: str = "cpu"):
                                                         else "ppo")
     model = algo_class(algo).load(model_path, env=env, device=device)
     return model, (vn_path if vn_path.exists() else None), algo
-
-
-# ----------------------------------------------------------------------------- worker processes
-
-
-def process_pool(n_workers: int):
-    """A spawn-context ``ProcessPoolExecutor`` whose workers end when this process ends."""
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
-
-    return ProcessPoolExecutor(max_workers=int(n_workers), mp_context=mp.get_context("spawn"),
-                               initializer=exit_with_parent, initargs=(os.getpid(),))

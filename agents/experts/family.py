@@ -11,14 +11,16 @@ new module with an :class:`EnvFamily` subclass, registered in :mod:`agents.exper
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from agents.common.law import GuidanceLaw
 
-__all__ = ["EnvFamily", "PerCaseOptimum"]
+__all__ = ["EnvFamily", "PerCaseOptimum", "DatasetRecipe", "DaggerRequest"]
 
 
 @dataclass
@@ -50,6 +52,93 @@ class PerCaseOptimum:
             "solver": solver, "converged": int(ok.sum()),
             "fuel_mean_kg": float(np.mean(fuel[ok])) if ok.any() else float("nan"),
             "wall_s": float(wall_s)})
+
+
+@dataclass(frozen=True)
+class DatasetRecipe:
+    """What an imitation dataset of a family is made of (:func:`agents.imitation.dataset.
+    generate` is the generic driver: shards, resume, merge).
+
+    Attributes
+    ----------
+    rows : ndarray, shape (n, n_row)
+        Initial rows of the trajectories, in the form the shard function reads (planar: SI
+        (r m, vr m/s, θ rad, v_t m/s, m kg); pinpoint: normalised Moon-fixed state (7,)).
+    observation_names : list of str
+        Names of the observation's components (the dataset meta).
+    label_rule : str
+        How each label is made (the dataset meta).
+    initial_states : str
+        How ``rows`` were drawn (the dataset meta).
+    solver, certification : dict
+        JSON metadata; both are part of the shard directory's identity.
+    shard_fn : callable
+        A *module-level* function (an executor task) ``shard_fn(job) -> dict of arrays``: one
+        shard's per-trajectory arrays and samples (the keys of :mod:`agents.imitation.data`)
+        and ``wall_s``. ``job`` holds ``k`` (shard index), ``rows`` (its rows),
+        ``first_index``, ``env_id``, ``env_kwargs``, ``dt_s`` (s), ``seed``,
+        ``tol_radius_m``, ``tol_speed_m_s`` and the items of ``job_args``.
+    job_args : dict
+        Family-specific items of every job (picklable).
+    """
+
+    rows: np.ndarray
+    observation_names: list[str]
+    label_rule: str
+    initial_states: str
+    solver: dict[str, Any]
+    certification: dict[str, Any]
+    shard_fn: Callable[[dict[str, Any]], dict[str, np.ndarray]]
+    job_args: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def tolerances(self) -> tuple[float, float]:
+        """(tol_radius_m, tol_speed_m_s) of the certification (m, m/s)."""
+        return (float(self.certification["tol_radius_m"]),
+                float(self.certification["tol_speed_m_s"]))
+
+
+@dataclass(frozen=True)
+class DaggerRequest:
+    """One DAgger iteration's inputs (:meth:`EnvFamily.dagger_iteration`).
+
+    Attributes
+    ----------
+    env_id : str
+    env_kwargs : dict
+    policy_file : str
+        The current policy, saved (a worker process loads it).
+    load_learner : callable
+        A *module-level* function ``load_learner(policy_file, env_id, env_kwargs,
+        obs_features) -> fn``, ``fn(obs (N, n_obs)) -> actions (N, n_act)``: the policy's
+        deterministic actions (given by the learner's room: the families never import it).
+    obs_features : list of str or None
+    n_episodes : int
+        Roll-outs; sub-env i is reset with seed ``seed + i``.
+    seed : int
+    settings : dict
+        The ``dagger`` section of the run's config (``beta``, ``label_every``,
+        ``dense_tail_s``, ``min_label_speed_m_s``, ``tail_label_every``, ...; each family reads
+        its own items, with defaults).
+    n_workers : int
+        Processes of the labelling (1: this process).
+    store_dir : path or None
+        A :class:`optimizers.common.executor.ResultStore` for the iteration's parts: parts
+        finished before a kill are read back, not recomputed.
+    progress : bool
+    """
+
+    env_id: str
+    env_kwargs: dict[str, Any]
+    policy_file: str
+    load_learner: Callable
+    obs_features: list[str] | None
+    n_episodes: int
+    seed: int
+    settings: dict[str, Any]
+    n_workers: int = 1
+    store_dir: Path | None = None
+    progress: bool = True
 
 
 class EnvFamily(ABC):
@@ -92,6 +181,30 @@ class EnvFamily(ABC):
                        rng: np.random.Generator) -> np.ndarray:
         """Curriculum starts with the errors of :meth:`start_noise_nd` added (a copy)."""
         raise ValueError(f"start_noise is not available for the {self.name} env family")
+
+    @abstractmethod
+    def dataset_recipe(self, scenario, n: int, seed: int, *, n_steps: int, check: str,
+                       tol_radius_m: float | None, tol_speed_m_s: float | None,
+                       action_noise: float | None) -> DatasetRecipe:
+        """The recipe of an imitation dataset of ``n`` trajectories drawn with ``seed``.
+
+        ``n_steps`` / ``check``: the optimiser's grid and certification check (families with
+        an open-loop solver); ``tol_*``: certification tolerances (m, m/s; None: the family's
+        default); ``action_noise``: noise on flown actions (action units; None: the family's
+        default). Raises ValueError naming an option the family does not accept.
+        """
+
+    @abstractmethod
+    def dagger_iteration(self, scenario, request: DaggerRequest
+                         ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+        """One DAgger iteration's labelled data from the current policy.
+
+        Returns ``(labels, rollout)``: ``labels`` has ``obs`` (L, n_obs) float32, ``actions``
+        (L, n_act) float32, ``phi_rad`` (L,) or (L, n_angle) (rad) and ``status`` (L,) str
+        (the expert's per-label status); ``rollout`` has ``rollout_success_rate``,
+        ``rollout_fuel_mean_kg`` (kg), ``rollout_wall_s`` and ``label_wall_s`` (s), and any
+        family-specific scalars.
+        """
 
     @abstractmethod
     def plot_optimum(self, ax_trajectory, ax_control, solution, scenario) -> None:

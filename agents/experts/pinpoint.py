@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from agents.common.law import FlightComputer, GuidanceLaw, Navigation
-from agents.experts.family import EnvFamily, PerCaseOptimum
+from agents.experts.family import DaggerRequest, DatasetRecipe, EnvFamily, PerCaseOptimum
 from agents.experts.pinpoint_optimum import PinpointOpenLoopLaw, pinpoint_optima
 from lunar_env.envs.pinpoint_landing import action_from_angles
 from lunar_env.scenarios import PinpointScenario
@@ -193,6 +193,23 @@ class PinpointFamily(EnvFamily):
         y[:, 0:3] += rng.normal(0.0, sig_r, (len(y), 3))
         y[:, 3:6] += rng.normal(0.0, sig_v, (len(y), 3))
         return y
+
+    def dataset_recipe(self, scenario, n: int, seed: int, *, n_steps: int, check: str,
+                       tol_radius_m: float | None, tol_speed_m_s: float | None,
+                       action_noise: float | None) -> DatasetRecipe:
+        """See :func:`agents.experts.pinpoint_data.pinpoint_dataset_recipe`."""
+        from agents.experts.pinpoint_data import pinpoint_dataset_recipe
+
+        return pinpoint_dataset_recipe(scenario, n, seed, n_steps=n_steps, check=check,
+                                       tol_radius_m=tol_radius_m, tol_speed_m_s=tol_speed_m_s,
+                                       action_noise=action_noise)
+
+    def dagger_iteration(self, scenario, request: DaggerRequest
+                         ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+        """See :func:`agents.experts.pinpoint_data.pinpoint_dagger_iteration`."""
+        from agents.experts.pinpoint_data import pinpoint_dagger_iteration
+
+        return pinpoint_dagger_iteration(scenario, request)
 
     def plot_optimum(self, ax_trajectory, ax_control, solution, scenario) -> None:
         s = scenario.scaling()

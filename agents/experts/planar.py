@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from agents.common.law import GuidanceLaw, Navigation
-from agents.experts.family import EnvFamily, PerCaseOptimum
+from agents.experts.family import DaggerRequest, DatasetRecipe, EnvFamily, PerCaseOptimum
 from lunar_env import dynamics as dyn
 from lunar_env.envs.soft_landing import action_from_thrust_angle, thrust_angle_from_action
 from lunar_env.scenarios import PlanarScenario
@@ -322,6 +322,23 @@ class PlanarFamily(EnvFamily):
             states.append(sol.state_costate_at(t)[:, :5])
             times.append(t)
         return np.asarray(states), np.asarray(times)
+
+    def dataset_recipe(self, scenario, n: int, seed: int, *, n_steps: int, check: str,
+                       tol_radius_m: float | None, tol_speed_m_s: float | None,
+                       action_noise: float | None) -> DatasetRecipe:
+        """See :func:`agents.experts.planar_data.planar_dataset_recipe`."""
+        from agents.experts.planar_data import planar_dataset_recipe
+
+        return planar_dataset_recipe(scenario, n, seed, n_steps=n_steps, check=check,
+                                     tol_radius_m=tol_radius_m, tol_speed_m_s=tol_speed_m_s,
+                                     action_noise=action_noise)
+
+    def dagger_iteration(self, scenario, request: DaggerRequest
+                         ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+        """See :func:`agents.experts.planar_data.planar_dagger_iteration`."""
+        from agents.experts.planar_data import planar_dagger_iteration
+
+        return planar_dagger_iteration(scenario, request)
 
     def plot_optimum(self, ax_trajectory, ax_control, solution, scenario) -> None:
         r_surf = scenario.surface_radius_m

@@ -14,9 +14,17 @@ import numpy as np
 import yaml
 
 from agents.common.runs import save_model_atomic, write_text_atomic
+from agents.experts.family import DaggerRequest
+from agents.experts.registry import family_of
 from agents.imitation.bc import _logger, _save_final, train_bc
-from agents.imitation.labelling import label_episodes, pinpoint_dagger_rollouts, rollout_policy
-from agents.imitation.policy import build_model, fit_policy, load_policy_model, policy_inputs
+from agents.imitation.policy import (
+    build_model,
+    fit_policy,
+    load_learner,
+    load_policy_model,
+    policy_inputs,
+)
+from lunar_env import get_scenario
 
 _DG_CKPT = re.compile(r"^dagger_iter_(\d+)\.zip$")
 
@@ -78,8 +86,8 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     inputs = policy_inputs(run["env"], env_kwargs, hp.get("obs_features"))
     ds_inputs = inputs(ds.observations)
     logger = _logger(run_dir, not run.get("no_tensorboard"))
-    dt_s = float(ds.meta["dt_s"])
-    sc_name = ds.meta["scenario"]
+    scenario = get_scenario(ds.meta["scenario"])
+    family = family_of(scenario)
     history_file = run_dir / "dagger_history.yml"
     history = yaml.safe_load(history_file.read_text()) if history_file.exists() else []
     history = [h for h in history if h["iteration"] < start]
@@ -93,38 +101,18 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
             print(f"DAgger iteration {it}: reusing {len(lab['obs'])} labels from {lb_file}")
         else:
             ep_seed = seed + int(dg.get("seed_offset", 100000)) + it * int(dg["n_episodes"])
-            t0 = time.perf_counter()
-            from agents.imitation.dataset import _is_pinpoint
-            from lunar_env import get_scenario
-
-            if _is_pinpoint(get_scenario(sc_name)):
-                # the policy flies (mixed with the expert, β) and the feedback expert labels
-                # every visited state, in worker processes that load this iteration's policy
-                pol_file = lbdir / f"iter_{it:03d}_policy.zip"
-                if not pol_file.exists():
-                    save_model_atomic(model, pol_file)
-                lab, roll = pinpoint_dagger_rollouts(
-                    pol_file, run["env"], env_kwargs, int(dg["n_episodes"]), ep_seed,
-                    hp.get("obs_features"), float(dg.get("beta", 0.5)),
-                    int(dg.get("n_label_workers", 1)), cache_dir=lbdir / f"iter_{it:03d}_parts",
-                    progress=not run.get("no_progress"))
-                roll["rollout_wall_s"] = time.perf_counter() - t0
-                t0 = time.perf_counter()
-            else:
-                eps = rollout_policy(model, run["env"], env_kwargs, int(dg["n_episodes"]),
-                                     ep_seed, hp.get("obs_features"))
-                roll = {"rollout_success_rate": float(np.mean([e["success"] for e in eps])),
-                        "rollout_fuel_mean_kg": float(np.mean([e["fuel_kg"] for e in eps])),
-                        "rollout_wall_s": time.perf_counter() - t0}
-                t0 = time.perf_counter()
-                lab = label_episodes(eps, sc_name, dt_s, int(dg["label_every"]),
-                                     float(dg["dense_tail_s"]), int(dg.get("n_label_workers", 1)),
-                                     progress=not run.get("no_progress"),
-                                     min_speed_m_s=float(dg.get("min_label_speed_m_s", 3.0)),
-                                     velocity_ref_m_s=get_scenario(sc_name).scaling().velocity_m_s,
-                                     cache_dir=lbdir / f"iter_{it:03d}_parts",
-                                     tail_label_every=int(dg.get("tail_label_every", 1)))
-            roll["label_wall_s"] = time.perf_counter() - t0
+            # the family flies this iteration's policy (saved: worker processes load it) and
+            # its expert labels the visited states
+            pol_file = lbdir / f"iter_{it:03d}_policy.zip"
+            if not pol_file.exists():
+                save_model_atomic(model, pol_file)
+            request = DaggerRequest(
+                env_id=run["env"], env_kwargs=env_kwargs, policy_file=str(pol_file),
+                load_learner=load_learner, obs_features=hp.get("obs_features"),
+                n_episodes=int(dg["n_episodes"]), seed=ep_seed, settings=dict(dg),
+                n_workers=int(dg.get("n_label_workers", 1)),
+                store_dir=lbdir / f"iter_{it:03d}_parts", progress=not run.get("no_progress"))
+            lab, roll = family.dagger_iteration(scenario, request)
             tmp = lb_file.with_suffix(".tmp.npz")
             np.savez_compressed(tmp, **lab, **{k: np.array(v) for k, v in roll.items()})
             os.replace(tmp, lb_file)

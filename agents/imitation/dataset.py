@@ -7,6 +7,11 @@ own spaces, each from a certified minimum-fuel trajectory.
     python -m agents.dataset --n 20 --out data/imitation/small.npz --workers 1
     python -m agents.dataset --n 1000 --workers 2 --out data/imitation/zhu2007_1000.npz  # resumes
 
+What the trajectories are, how they are labelled and certified is the env family's
+(:meth:`agents.experts.family.EnvFamily.dataset_recipe`; soft landing:
+:mod:`agents.experts.planar_data`, pinpoint: :mod:`agents.experts.pinpoint_data`); this module
+is the generic driver (shards, executor, resume, merge). Soft landing:
+
 Pipeline
 --------
 1. Initial states: ``scenario.sample_initial(np.random.default_rng(seed), n)`` (SI rows), the
@@ -33,16 +38,9 @@ Pipeline
    (``replay_fuel_gap_kg``). ``certified`` = solver success, terminal speed and radius errors
    below ``tol_speed_m_s`` / ``tol_radius_m`` and the env replay a success.
 
-Pinpoint (``--env LunarPinpointLanding-v*``): no open-loop solution can be sampled there (the
-optimum held over 1 s env steps misses the gate by ~10 m/s, and a clone of the optimal
-trajectories alone drifts off them), so the samples come from the **Pontryagin feedback
-expert's own closed-loop flights** (:func:`pinpoint_expert_flights`): at every decision the
-minimum-fuel extremal is re-solved from the visited state (~1-15 ms), the label is its law
-averaged over the step, and the env is flown with that action plus Gaussian noise (``--noise``,
-default :data:`PINPOINT_ACTION_NOISE`), so the states cover the tube a learner visits. Per
-trajectory, ``fuel_kg`` / ``tf_s`` are the extremal from the initial state (the per-case
-optimum) and ``replay_*`` the noisy flight; ``certified`` = that flight is the env's success
-within the tolerances (default: the env's, 5 m/s and 500 m) and the first solve converged.
+Pinpoint (``--env LunarPinpointLanding-v*``): the samples come from the Pontryagin feedback
+expert's own noisy closed-loop flights (:func:`agents.experts.pinpoint_data.
+pinpoint_expert_flights`; ``--noise``).
 
 Parallel, progress, resume: the rows are split into shards of ``shard_size``; shards are tasks
 of :mod:`optimizers.common.executor` (a local process pool of ``--workers``, or a Ray cluster
@@ -72,18 +70,15 @@ Only certified trajectories contribute samples.
 from __future__ import annotations
 
 import json
-import os
 import time
-import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agents.common.law import ActionSequenceLaw, Navigation, PrivilegedLaw, Truth
-from agents.common.rollout import fly
 from agents.common.runs import write_text_atomic
-from agents.experts.pinpoint import PinpointPontryaginExpert
+from agents.experts.flights import make_env
+from agents.experts.registry import family_of
 from agents.imitation.data import (
     FORMAT_VERSION,
     OPTIONAL_PER_TRAJECTORY_KEYS,
@@ -93,328 +88,12 @@ from agents.imitation.data import (
     load_dataset,
     save_dataset,
 )
+from agents.imitation.shards import read_shard, shard_done, shard_path, write_shard
 
-__all__ = ["generate", "trajectory_samples", "replay_labels", "pinpoint_expert_flights"]
+__all__ = ["generate", "DEFAULT_ENV_ID", "DEFAULT_OUT"]
 
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
 DEFAULT_OUT = "data/imitation/LunarSoftLanding-v0_n1000_seed0.npz"
-LABEL_RULE = "action_from_thrust_angle(phi*(t_k + dt_s/2)), t_k = k*dt_s < tf"
-PINPOINT_LABEL_RULE = ("action_from_angles(mean of the extremal's (alpha*, beta*) over "
-                       "[t_k, t_k + dt_s]) at each state visited by the Pontryagin feedback "
-                       "expert's own flight, flown with Gaussian action noise (DART)")
-#: pinpoint certification: the expert's (noisy) flight is the env's success and lands within
-#: these gate miss / gate speed (default: the env's own success tolerances)
-PINPOINT_TOLERANCES = {"radius_m": 500.0, "speed_m_s": 5.0}
-#: pinpoint: standard deviation of the action noise of the expert's flights (action units;
-#: 0.02 = 0.9° of α or β). Measured (50 flights at 1 s decisions): the noisy expert still lands
-#: 98 % (gate speed median 1.2 m/s, miss median 20 m) and its states cover the tube a clone
-#: visits; a clone trained on noise-free flights drifts 1-10 km from them.
-PINPOINT_ACTION_NOISE = 0.02
-
-
-# --------------------------------------------------------------------------------- samples
-
-
-def _make_env(env_id: str, env_kwargs: dict[str, Any] | None):
-    import gymnasium as gym
-
-    import lunar_env  # noqa: F401  (registers the ids)
-
-    return gym.make(env_id, **(env_kwargs or {})).unwrapped
-
-
-def trajectory_samples(sol, env, dt_s: float) -> dict[str, np.ndarray]:
-    """(observation, action) samples of one optimal solution at the env's decision times.
-
-    Parameters
-    ----------
-    sol : PontryaginSolution
-        A converged solution (``state_costate_at``, ``thrust_angle_at``, ``tf_s``).
-    env : LunarSoftLandingEnv (unwrapped)
-        Provides ``observation_from_state``.
-    dt_s : float
-        Env step (s).
-
-    Returns
-    -------
-    dict with ``observations`` (K, n_obs) float32, ``actions`` (K, 1) float32, ``t_s`` (K,),
-    ``state_nd`` (K, 5), ``phi_rad`` (K,) — see :data:`LABEL_RULE`.
-    """
-    from lunar_env.envs.soft_landing import action_from_thrust_angle
-
-    n_k = int(np.ceil(sol.tf_s / dt_s - 1e-9))
-    t = dt_s * np.arange(max(n_k, 1), dtype=np.float64)
-    x = sol.state_costate_at(t)[:, :5]
-    phi = np.asarray(sol.thrust_angle_at(np.minimum(t + 0.5 * dt_s, sol.tf_s)), dtype=np.float64)
-    obs = np.asarray(env.observation_from_state(x, t), dtype=np.float32)
-    act = np.asarray(action_from_thrust_angle(phi), dtype=np.float32).reshape(-1, 1)
-    return {"observations": obs, "actions": act, "t_s": t, "state_nd": x, "phi_rad": phi}
-
-
-def replay_labels(env_id: str, env_kwargs: dict[str, Any] | None,
-                  initial_state_si: np.ndarray | None, action_seqs: list[np.ndarray],
-                  initial_state_nd: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """Replay per-case action sequences open-loop in the native vector env.
-
-    Each case starts from its SI initial state (or its normalised ``initial_state_nd``); after
-    its sequence ends the last action is held.
-
-    Returns
-    -------
-    dict with ``fuel_kg``, ``touchdown_speed_m_s`` (NaN if the episode was truncated), ``success``
-    (arrays of length n_cases).
-    """
-    n = len(action_seqs)
-    lens = np.array([len(a) for a in action_seqs])
-    out = fly(env_id, ActionSequenceLaw(action_seqs), n, seed=0, env_kwargs=env_kwargs,
-              reset_options=({"state_si": np.asarray(initial_state_si, dtype=np.float64)}
-                             if initial_state_nd is None else
-                             {"state_nd": np.asarray(initial_state_nd, dtype=np.float64)}),
-              max_steps=int(lens.max()) + 100_000)
-    fuel, speed, success = out.fuel_used_kg, out.touchdown_speed_m_s, out.is_success
-    return {"fuel_kg": fuel, "touchdown_speed_m_s": speed, "success": success}
-
-
-def _is_pinpoint(scenario) -> bool:
-    from lunar_env.scenarios import PinpointScenario
-
-    return isinstance(scenario, PinpointScenario)
-
-
-class ExpertFlightTeacher(PrivilegedLaw):
-    """The pinpoint feedback expert's own flights with DART action noise, every visited *true*
-    state labelled with its clean action (a privileged teacher: see
-    :func:`pinpoint_expert_flights`).
-
-    Parameters
-    ----------
-    expert : PinpointPontryaginExpert
-    n : int
-        Cases flown.
-    action_noise : float
-        Standard deviation of the Gaussian noise on the flown action (action units).
-    rng : numpy.random.Generator
-    """
-
-    name = "Pontryagin feedback expert"
-
-    def __init__(self, expert, n: int, action_noise: float, rng: np.random.Generator) -> None:
-        self.expert = expert
-        self.action_noise = float(action_noise)
-        self.rng = rng
-        self.records: dict[str, list] = {
-            k: [[] for _ in range(n)]
-            for k in ("observations", "actions", "t_s", "state_nd", "phi_rad", "status")}
-        #: optimum fuel (kg) and tf (s) of the extremal from each initial state
-        self.first = np.full((n, 2), np.nan)
-
-    def reset(self, computer, case_ids: np.ndarray) -> None:
-        super().reset(computer, case_ids)
-        self.expert.reset(computer, case_ids)
-
-    def act_privileged(self, nav: Navigation, truth: Truth) -> np.ndarray:
-        states, times = truth.state_nd, truth.t_s
-        ang, lab, is_label = self.expert.labels(states, times, nav.active)
-        status = self.expert.last_status
-        tgo = self.expert.feedback.last_tgo_s
-        flow = self.expert.scenario.vehicle.mass_flow_kg_s
-        rec = self.records
-        for i in np.flatnonzero(nav.active):
-            if times[i] == 0.0 and status[i] == "optimal":
-                self.first[i] = flow * tgo[i], tgo[i]
-            if is_label[i]:
-                for key, val in (("observations", nav.obs[i]), ("actions", lab[i]),
-                                 ("t_s", times[i]), ("state_nd", states[i]),
-                                 ("phi_rad", ang[i]), ("status", status[i])):
-                    rec[key][i].append(np.array(val, copy=True))
-        noise = (self.rng.normal(0.0, self.action_noise, lab.shape) if self.action_noise > 0
-                 else 0.0)
-        return np.clip(lab + noise, -1.0, 1.0).astype(np.float32)
-
-
-def pinpoint_expert_flights(rows_nd: np.ndarray, env_id: str,
-                            env_kwargs: dict[str, Any] | None, action_noise: float,
-                            rng: np.random.Generator) -> dict[str, Any]:
-    """Fly the Pontryagin feedback expert from each normalised initial state and label every
-    visited state with its clean action (DART: Laskey et al. 2017).
-
-    The expert (:class:`agents.experts.pinpoint.PinpointPontryaginExpert`) re-solves the
-    minimum-fuel
-    extremal from the lander's state at every decision; the env is flown with its action plus
-    Gaussian noise of standard deviation ``action_noise`` (action units; 0.02 ≈ 0.9°), so the
-    visited states spread around the optimal trajectory the way a learner's do, while every
-    label stays the expert's optimal action there (:data:`PINPOINT_LABEL_RULE`). Labels whose
-    solve did not converge (status "stale"/"fallback") are dropped.
-
-    Returns per case: ``samples`` (list of dicts ``observations``, ``actions``, ``t_s``,
-    ``state_nd``, ``phi_rad``, ``status``), the flight's ``success``, ``touchdown_speed_m_s``,
-    ``miss_m``, ``fuel_kg``; ``optimum_fuel_kg`` / ``optimum_tf_s`` of the extremal from the
-    initial state (the per-case optimum; NaN if that first solve failed); ``wall_s``.
-    """
-    env = _make_env(env_id, env_kwargs)
-    sc = env.scenario
-    env.close()
-    x0 = np.asarray(rows_nd, dtype=np.float64)
-    n = len(x0)
-    teacher = ExpertFlightTeacher(PinpointPontryaginExpert(sc), n, action_noise, rng)
-    t0 = time.perf_counter()
-    out = fly(env_id, teacher, n, seed=0, env_kwargs=env_kwargs, reset_options={"state_nd": x0})
-    rec, first, expert = teacher.records, teacher.first, teacher.expert
-    samples = []
-    for i in range(n):
-        if not rec["t_s"][i]:
-            samples.append(None)
-            continue
-        smp = {k: np.asarray(v[i]) for k, v in rec.items()}
-        smp["observations"] = smp["observations"].astype(np.float32)
-        smp["actions"] = smp["actions"].astype(np.float32)
-        samples.append(smp)
-    return {"samples": samples, "success": out.is_success,
-            "touchdown_speed_m_s": out.touchdown_speed_m_s, "miss_m": out.miss_distance_m,
-            "fuel_kg": out.fuel_used_kg, "optimum_fuel_kg": first[:, 0],
-            "optimum_tf_s": first[:, 1], "wall_s": time.perf_counter() - t0,
-            "status_counts": dict(expert.status_counts)}
-
-
-def _pinpoint_shard_work(job: dict[str, Any]) -> dict[str, np.ndarray]:
-    """Fly, label and certify one pinpoint shard (see :func:`pinpoint_expert_flights`)."""
-    from lunar_env.states import moon3d_nd_to_si
-
-    env = _make_env(job["env_id"], job["env_kwargs"])
-    sc = env.scenario
-    n_obs = env.observation_space.shape[0]
-    env.close()
-    x0 = np.asarray(job["rows"], dtype=np.float64)
-    t0 = time.perf_counter()
-    rng = np.random.default_rng([int(job["seed"]), int(job["k"])])
-    fl = pinpoint_expert_flights(x0, job["env_id"], job["env_kwargs"],
-                                 float(job["action_noise"]), rng)
-    n = len(x0)
-    samples = fl["samples"]
-    ok = np.isfinite(fl["optimum_fuel_kg"])
-    err_v = np.asarray(fl["touchdown_speed_m_s"], dtype=np.float64)
-    err_r = np.asarray(fl["miss_m"], dtype=np.float64)
-    flown_ok = np.asarray(fl["success"], dtype=bool)
-    cert = (ok & flown_ok & np.array([s is not None for s in samples])
-            & (err_v <= job["tol_speed_m_s"]) & (err_r <= job["tol_radius_m"]))
-    out: dict[str, Any] = {
-        "initial_state_si": moon3d_nd_to_si(x0, sc.scaling()), "solver_success": ok,
-        "start_time_s": np.zeros(n), "parent_index": np.full(n, -1, dtype=np.int64),
-        "fuel_kg": fl["optimum_fuel_kg"], "tf_s": fl["optimum_tf_s"],
-        "terminal_error_radius_m": err_r, "terminal_error_speed_m_s": err_v,
-        "replay_fuel_kg": np.asarray(fl["fuel_kg"], dtype=np.float64),
-        "replay_touchdown_speed_m_s": err_v, "replay_success": flown_ok,
-        "replay_fuel_gap_kg": np.asarray(fl["fuel_kg"], dtype=np.float64)
-        - fl["optimum_fuel_kg"], "certified": cert,
-        "solve_wall_s": np.full(n, fl["wall_s"] / max(n, 1)),
-    }
-    _collect_samples(out, samples, cert, job["first_index"], n_obs, n_act=2, nx=7, n_angle=2)
-    out["wall_s"] = np.array(time.perf_counter() - t0)
-    return out
-
-
-def _collect_samples(out: dict[str, Any], samples: list, cert: np.ndarray, first: int,
-                     n_obs: int, n_act: int, nx: int, n_angle: int) -> None:
-    """Concatenate the certified trajectories' samples into ``out`` (empty arrays if none)."""
-    keep = [i for i in range(len(samples)) if cert[i]]
-    shape = {"observations": (0, n_obs), "actions": (0, n_act), "state_nd": (0, nx),
-             "phi_rad": (0, n_angle) if n_angle > 1 else (0,)}
-    for key in ("observations", "actions", "t_s", "state_nd", "phi_rad"):
-        if keep:
-            out[key] = np.concatenate([samples[i][key] for i in keep])
-        else:
-            out[key] = np.zeros(shape.get(key, (0,)),
-                                dtype=np.float32 if key in ("observations", "actions")
-                                else np.float64)
-    out["traj_index"] = (np.concatenate([np.full(len(samples[i]["t_s"]), first + i)
-                                         for i in keep]).astype(np.int64)
-                         if keep else np.zeros(0, dtype=np.int64))
-
-
-def _shard_work(job: dict[str, Any]) -> dict[str, np.ndarray]:
-    """Solve, sample and certify one shard (runs in a worker process)."""
-    import warnings
-
-    from optimizers.indirect.batch import solve_many
-
-    if job.get("pinpoint"):
-        return _pinpoint_shard_work(job)
-    env = _make_env(job["env_id"], job["env_kwargs"])
-    sc = env.scenario
-    rows = np.asarray(job["rows"], dtype=np.float64)
-    dt_s = float(job["dt_s"])
-    t0 = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        sols = solve_many(sc, rows, n_workers=1, progress=False, n_steps=job["n_steps"],
-                          check=job["check"])
-    n = len(rows)
-    wall = np.full(n, (time.perf_counter() - t0) / max(n, 1))
-    ok = np.array([s.success for s in sols], dtype=bool)
-    fuel = np.array([s.fuel_kg if s.success else np.nan for s in sols])
-    tf = np.array([s.tf_s if s.success else np.nan for s in sols])
-    err_r = np.array([s.terminal_errors.get("radius_m", np.nan) if s.success else np.nan
-                      for s in sols])
-    err_v = np.array([s.terminal_errors.get("speed_m_s", np.nan) if s.success else np.nan
-                      for s in sols])
-    samples = [trajectory_samples(s, env, dt_s) if s.success else None for s in sols]
-    idx_ok = np.flatnonzero(ok)
-    rep_fuel = np.full(n, np.nan)
-    rep_speed = np.full(n, np.nan)
-    rep_ok = np.zeros(n, dtype=bool)
-    if len(idx_ok):
-        rep = replay_labels(job["env_id"], job["env_kwargs"], rows[idx_ok],
-                            [samples[i]["actions"] for i in idx_ok])
-        rep_fuel[idx_ok] = rep["fuel_kg"]
-        rep_speed[idx_ok] = rep["touchdown_speed_m_s"]
-        rep_ok[idx_ok] = rep["success"]
-    cert = (ok & (err_r <= job["tol_radius_m"]) & (err_v <= job["tol_speed_m_s"]) & rep_ok)
-    out: dict[str, Any] = {
-        "initial_state_si": rows, "solver_success": ok, "fuel_kg": fuel, "tf_s": tf,
-        "terminal_error_radius_m": err_r, "terminal_error_speed_m_s": err_v,
-        "replay_fuel_kg": rep_fuel, "replay_touchdown_speed_m_s": rep_speed,
-        "replay_success": rep_ok, "replay_fuel_gap_kg": rep_fuel - fuel, "certified": cert,
-        "solve_wall_s": wall,
-    }
-    _collect_samples(out, samples, cert, job["first_index"], env.observation_space.shape[0],
-                     n_act=1, nx=5, n_angle=1)
-    out["wall_s"] = np.array(time.perf_counter() - t0)
-    return out
-
-
-# --------------------------------------------------------------------------------- driver
-
-
-def _shard_path(shard_dir: Path, k: int) -> Path:
-    return shard_dir / f"shard_{k:05d}.npz"
-
-
-def _read_shard(path: Path) -> dict[str, np.ndarray]:
-    """Every array of a shard file; ValueError naming the shard if it is damaged."""
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            out = {f: z[f] for f in z.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise ValueError(f"dataset shard {path} is damaged ({type(exc).__name__}: {exc})"
-                         ) from None
-    missing = [k for k in (*PER_TRAJECTORY_KEYS, *PER_SAMPLE_KEYS) if k not in out]
-    if missing:
-        raise ValueError(f"dataset shard {path} is damaged (lacks {missing})")
-    return out
-
-
-def _shard_done(path: Path) -> bool:
-    """True if the shard exists and reads; a damaged one is moved aside (``.damaged``) with a
-    message naming it, and its rows are solved again."""
-    if not path.exists():
-        return False
-    try:
-        _read_shard(path)
-        return True
-    except ValueError as exc:
-        os.replace(path, path.with_name(path.name + ".damaged"))
-        print(f"{exc}: moved to {path.name}.damaged; its rows are solved again")
-        return False
 
 
 def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
@@ -441,17 +120,19 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     shard_size : int
         Trajectories per shard (the unit of resumption).
     n_steps, check :
-        Passed to :func:`optimizers.indirect.batch.solve_many`.
+        Soft landing: passed to :func:`optimizers.indirect.batch.solve_many`.
     tol_radius_m, tol_speed_m_s : float, optional
         Certification tolerances. Soft landing: on the solver's terminal errors (default
         1e-3 m, 1e-3 m/s). Pinpoint: on the gate miss and gate speed of the expert's own flight
-        (:func:`pinpoint_expert_flights`; default :data:`PINPOINT_TOLERANCES`), on top of the
-        env's success verdict.
+        (default :data:`agents.experts.pinpoint_data.PINPOINT_TOLERANCES`), on top of the
+        env's success verdict. (The family's :meth:`~agents.experts.family.EnvFamily.
+        dataset_recipe` sets the defaults.)
     max_shards : int, optional
         Stop after this many new shards (simulates an interruption; returns None).
     action_noise : float, optional
         Pinpoint only: standard deviation of the Gaussian noise on the expert's flown actions
-        (default :data:`PINPOINT_ACTION_NOISE`; 0 gives the optimal trajectories themselves).
+        (default :data:`agents.experts.pinpoint_data.PINPOINT_ACTION_NOISE`; 0 gives the
+        optimal trajectories themselves).
     executor : optimizers.common.executor.Executor, optional
         Runs the shards (e.g. a Ray cluster: ``--address``); overrides ``n_workers``. The
         caller keeps ownership. Each shard is a task keyed (scenario, seed, shard index),
@@ -468,50 +149,21 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     if check not in ("grid", "doubling", "reference"):
         raise ValueError(f"check = {check!r}; use 'grid', 'doubling' or 'reference'")
     out = Path(out)
-    env = _make_env(env_id, env_kwargs)
+    env = make_env(env_id, env_kwargs)
     sc = env.scenario
     dt_s = float(env.dt_s)
-    pinpoint = _is_pinpoint(sc)
-    obs_names = (["altitude/h0", "d_radial/d0", "d_along/d0", "d_cross/d0", "u/(0.1 v0)",
-                  "v/v0", "w/(0.1 v0)", "propellant/nominal", "t/time_limit"] if pinpoint else
-                 ["altitude/h0", "vr/(0.1 v0)", "v_t/v0", "propellant/nominal", "t/time_limit"])
     env.close()
-    if pinpoint:
-        s_nd = sc.scaling()
-        rows = np.array([sc.state_nd(r, scaling=s_nd)
-                         for r in sc.sample_initial(np.random.default_rng(int(seed)), int(n))])
-        tol_radius_m = PINPOINT_TOLERANCES["radius_m"] if tol_radius_m is None else tol_radius_m
-        tol_speed_m_s = (PINPOINT_TOLERANCES["speed_m_s"] if tol_speed_m_s is None
-                         else tol_speed_m_s)
-        action_noise = PINPOINT_ACTION_NOISE if action_noise is None else float(action_noise)
-        if not (np.isfinite(action_noise) and action_noise >= 0.0):
-            raise ValueError(f"action_noise = {action_noise!r} must be finite and >= 0")
-        solver_meta = {"name": "agents.experts.pinpoint.PinpointPontryaginExpert (the minimum-fuel "
-                               "extremal from every visited state, optimizers.indirect."
-                               "pinpoint_feedback)", "action_noise": action_noise}
-        cert_meta = {"tol_radius_m": tol_radius_m, "tol_speed_m_s": tol_speed_m_s,
-                     "replay": "the expert's own flight (with the action noise): is_success "
-                               "and gate miss / speed within the tolerances"}
-    else:
-        if action_noise is not None:
-            raise ValueError(f"action_noise = {action_noise!r}: defined for the pinpoint env "
-                             "only (soft-landing datasets sample the optimal trajectories)")
-        rows = sc.sample_initial(np.random.default_rng(int(seed)), int(n))
-        tol_radius_m = 1e-3 if tol_radius_m is None else tol_radius_m
-        tol_speed_m_s = 1e-3 if tol_speed_m_s is None else tol_speed_m_s
-        solver_meta = {"name": "optimizers.indirect.batch.solve_many", "n_steps": int(n_steps),
-                       "check": check, "warm_start": "nearest-neighbour chain per shard"}
-        cert_meta = {"tol_radius_m": tol_radius_m, "tol_speed_m_s": tol_speed_m_s,
-                     "replay": "labels replayed open-loop in the native vector env; "
-                               "must be is_success"}
+    recipe = family_of(sc).dataset_recipe(
+        sc, int(n), int(seed), n_steps=int(n_steps), check=check, tol_radius_m=tol_radius_m,
+        tol_speed_m_s=tol_speed_m_s, action_noise=action_noise)
+    rows = recipe.rows
+    tol_radius_m, tol_speed_m_s = recipe.tolerances
     meta = {
         "format_version": FORMAT_VERSION, "env_id": env_id, "env_kwargs": dict(env_kwargs or {}),
         "scenario": sc.name, "seed": int(seed), "n_trajectories": int(n),
-        "shard_size": int(shard_size), "dt_s": dt_s,
-        "label_rule": PINPOINT_LABEL_RULE if pinpoint else LABEL_RULE,
-        "solver": solver_meta, "certification": cert_meta,
-        "observation_names": obs_names, "initial_states": "scenario.sample_initial(rng, n)"
-        + (" -> scenario.state_nd (initial_state_si: Moon-fixed SI)" if pinpoint else ""),
+        "shard_size": int(shard_size), "dt_s": dt_s, "label_rule": recipe.label_rule,
+        "solver": recipe.solver, "certification": recipe.certification,
+        "observation_names": recipe.observation_names, "initial_states": recipe.initial_states,
     }
     shard_dir = out.with_name(out.name + ".shards")
     shard_dir.mkdir(parents=True, exist_ok=True)
@@ -531,14 +183,13 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     done_before = 0
     for k in range(n_shards):
         lo, hi = k * int(shard_size), min((k + 1) * int(shard_size), int(n))
-        if _shard_done(_shard_path(shard_dir, k)):
+        if shard_done(shard_path(shard_dir, k)):
             done_before += hi - lo
             continue
-        jobs.append({"k": k, "rows": rows[lo:hi], "first_index": lo, "env_id": env_id,
-                     "env_kwargs": dict(env_kwargs or {}), "dt_s": dt_s, "n_steps": int(n_steps),
-                     "check": check, "tol_radius_m": float(tol_radius_m),
-                     "tol_speed_m_s": float(tol_speed_m_s), "pinpoint": pinpoint,
-                     "action_noise": action_noise, "seed": int(seed)})
+        jobs.append({**recipe.job_args, "k": k, "rows": rows[lo:hi], "first_index": lo,
+                     "env_id": env_id, "env_kwargs": dict(env_kwargs or {}), "dt_s": dt_s,
+                     "tol_radius_m": tol_radius_m, "tol_speed_m_s": tol_speed_m_s,
+                     "seed": int(seed)})
     if max_shards is not None:
         jobs = jobs[:int(max_shards)]
     bar = None
@@ -561,10 +212,7 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
 
     def _store(job, res):
         wall = float(res.pop("wall_s"))
-        path = _shard_path(shard_dir, job["k"])
-        tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
-        np.savez_compressed(tmp, wall_s=np.array(wall), **res)
-        os.replace(tmp, path)
+        write_shard(shard_path(shard_dir, job["k"]), res, wall)
         session["new_shards"] += 1
         _record_timing()
         if bar is not None:
@@ -572,7 +220,8 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
 
     from optimizers.common.executor import LocalExecutor, Task, TaskKey, run_tasks
 
-    tasks = [Task(TaskKey(f"dataset-{sc.name}", int(seed), job["k"]), _shard_work, (job,))
+    tasks = [Task(TaskKey(f"dataset-{sc.name}", int(seed), job["k"]), recipe.shard_fn,
+                  (job,))
              for job in jobs]
     by_k = {job["k"]: job for job in jobs}
     ex = executor
@@ -587,9 +236,9 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         if bar is not None:
             bar.close()
     _record_timing()
-    if not all(_shard_path(shard_dir, k).exists() for k in range(n_shards)):
+    if not all(shard_path(shard_dir, k).exists() for k in range(n_shards)):
         return None
-    parts = [_read_shard(_shard_path(shard_dir, k)) for k in range(n_shards)]
+    parts = [read_shard(shard_path(shard_dir, k)) for k in range(n_shards)]
     optional = [k for k in OPTIONAL_PER_TRAJECTORY_KEYS if all(k in p for p in parts)]
     arrays = {key: np.concatenate([p[key] for p in parts])
               for key in (*PER_TRAJECTORY_KEYS, *optional, *PER_SAMPLE_KEYS)}

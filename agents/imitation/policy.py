@@ -65,11 +65,21 @@ def policy_inputs(env_id: str, env_kwargs: dict[str, Any] | None,
     names = validate_features(obs_features)
     if not names:
         return lambda obs: np.asarray(obs, dtype=np.float32)
-    from agents.imitation.dataset import _make_env
+    from agents.experts.flights import make_env
 
-    env = _make_env(env_id, env_kwargs)
+    env = make_env(env_id, env_kwargs)
     consts = feature_constants(env)
     return lambda obs: augment_observation(np.asarray(obs), consts, names)
+
+
+def load_learner(policy_file: str | Path, env_id: str, env_kwargs: dict[str, Any] | None,
+                 obs_features: list[str] | None):
+    """The saved policy's deterministic actions as ``fn(obs (N, n_obs)) -> actions (N, n_act)``
+    (the env's raw observations; the ``obs_features`` are appended here). Module level: the
+    families' DAgger tasks receive it (:class:`agents.experts.family.DaggerRequest`)."""
+    model = load_policy_model(policy_file)
+    inputs = policy_inputs(env_id, env_kwargs, obs_features)
+    return lambda obs: model.predict(inputs(obs), deterministic=True)[0]
 
 
 def mean_actions(policy, obs):
