@@ -63,7 +63,6 @@ from agents.common.runs import (
     resumable_checkpoint,
     write_text_atomic,
 )
-from agents.common.runs import latest_checkpoint as latest_checkpoint  # re-export (0.1 API)
 from agents.hyperparams import (
     ALGOS,
     apply_overrides,
@@ -74,8 +73,8 @@ from agents.hyperparams import (
 from agents.rl.race import race_pending, race_trained_to_end, seed_race
 from agents.rl.training import DEFAULT_ENV_ID, make_training_env, train
 
-__all__ = ["main", "build_parser", "train", "make_training_env", "latest_checkpoint",
-           "load_trained", "next_run_dir", "DEFAULT_ENV_ID"]
+__all__ = ["main", "build_parser", "train", "make_training_env", "load_trained", "next_run_dir",
+           "DEFAULT_ENV_ID"]
 
 
 def build_parser() -> argparse.ArgumentParser:
