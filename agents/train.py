@@ -263,8 +263,7 @@ def main(argv: list[str] | None = None) -> int:
           f"config={run['config']}, seed={run['seed']})")
     try:
         if race_pending(hp, run_dir):
-            # a few seeds side by side to the decision step, then the winner alone (or, decided
-            # at the end, the winner's final policy is the run's)
+            # a few seeds side by side to the end; the winner's final policy is the run's
             run = seed_race(hp, run, run_dir)
             resume = True
         if not race_trained_to_end(hp, run_dir):
