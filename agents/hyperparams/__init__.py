@@ -49,7 +49,8 @@ from typing import Any
 import yaml
 
 __all__ = [
-    "ALGOS", "PROFILE_SEPARATOR", "RUN_KEYS", "apply_overrides", "default_hyperparams_path",
+    "ALGOS", "PROFILE_SEPARATOR", "REMOVED_KEYS", "RUN_KEYS", "apply_overrides",
+    "default_hyperparams_path",
     "load_hyperparams",
     "parse_override", "resolve_algo_kwargs", "linear_schedule",
 ]
@@ -63,7 +64,8 @@ RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "noise_type", "noise
 #: keys of earlier versions, refused with the reason they were removed
 REMOVED_KEYS = {
     "noise_anneal": "removed in issue 28: measured on six pinpoint seeds without a net gain "
-                    "(docs/notes/issue-16.md); drop the key",
+                    "(docs/notes/issue-16.md, 'The exploration noise annealed at the end'); drop "
+                    "the key",
 }
 
 _ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU",
