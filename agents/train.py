@@ -63,7 +63,6 @@ from agents.common.runs import (
     resumable_checkpoint,
     write_text_atomic,
 )
-from agents.common.runs import latest_checkpoint as latest_checkpoint  # re-export (0.1 API)
 from agents.hyperparams import (
     ALGOS,
     apply_overrides,
@@ -74,8 +73,8 @@ from agents.hyperparams import (
 from agents.rl.race import race_pending, race_trained_to_end, seed_race
 from agents.rl.training import DEFAULT_ENV_ID, make_training_env, train
 
-__all__ = ["main", "build_parser", "train", "make_training_env", "latest_checkpoint",
-           "load_trained", "next_run_dir", "DEFAULT_ENV_ID"]
+__all__ = ["main", "build_parser", "train", "make_training_env", "load_trained", "next_run_dir",
+           "DEFAULT_ENV_ID"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -264,8 +263,7 @@ def main(argv: list[str] | None = None) -> int:
           f"config={run['config']}, seed={run['seed']})")
     try:
         if race_pending(hp, run_dir):
-            # a few seeds side by side to the decision step, then the winner alone (or, decided
-            # at the end, the winner's final policy is the run's)
+            # a few seeds side by side to the end; the winner's final policy is the run's
             run = seed_race(hp, run, run_dir)
             resume = True
         if not race_trained_to_end(hp, run_dir):

@@ -65,23 +65,3 @@ def test_start_noise_perturbs_pinpoint_starts_off_the_optimal_trajectories():
         OptimalStartCurriculum(soft, 100, n_trajectories=2, progress=False,
                                start_noise={"position_m": 1.0})
     soft.close()
-
-
-def test_noise_anneal_sets_the_exploration_noise_on_a_line_to_the_end():
-    from stable_baselines3 import PPO
-
-    from agents.rl.training import noise_anneal_callback
-
-    venv = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0)
-    model = PPO("MlpPolicy", venv, n_steps=8, batch_size=16, seed=0, device="cpu",
-                policy_kwargs={"log_std_init": -2.0})
-    cb = noise_anneal_callback(1000, start_fraction=0.5, final_log_std=-4.0)
-    cb.init_callback(model)
-    log_std = model.policy.log_std
-    for t, want in ((100, -2.0), (500, -2.0), (750, -3.0), (1000, -4.0)):
-        model.num_timesteps = t
-        cb.on_rollout_start()
-        np.testing.assert_allclose(log_std.detach().numpy(), want, atol=1e-6)
-    with pytest.raises(ValueError, match="start_fraction"):
-        noise_anneal_callback(1000, start_fraction=1.0, final_log_std=-4.0)
-    venv.close()

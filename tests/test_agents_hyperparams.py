@@ -83,6 +83,18 @@ def test_structural_resolution():
         resolve_algo_kwargs({"noise_type": "normal"}, "ppo")
 
 
+def test_removed_keys_are_refused_with_the_reason():
+    """noise_anneal (issue 28) is neither a run key nor passed on to PPO: a config that still
+    sets it is refused by name, pointing at the measurements."""
+    anneal = {"start_fraction": 0.7, "final_log_std": -5.0}
+    with pytest.raises(ValueError, match=r"noise_anneal=.*issue-16\.md"):
+        resolve_algo_kwargs({"n_steps": 64, "noise_anneal": anneal}, "ppo")
+    for algo in ALGOS:
+        for env_id in ENV_IDS:
+            hp = load_hyperparams(default_hyperparams_path(algo), env_id)
+            assert "noise_anneal" not in hp
+
+
 def test_cli_overrides_parse_yaml_values_and_dotted_keys():
     assert parse_override("n_steps=512") == ("n_steps", 512)
     assert parse_override("learning_rate=lin_1e-3") == ("learning_rate", "lin_1e-3")

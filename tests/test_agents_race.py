@@ -1,5 +1,5 @@
-"""Seed race (agents.rl.race): candidates side by side to the decision step, the winner
-continues."""
+"""Seed race (agents.rl.race): candidates side by side to the end as executor tasks, the
+winner's selected policy is the run's."""
 
 import pytest
 import yaml
@@ -12,11 +12,13 @@ ENV_ID = "LunarPinpointLanding-v2"
 
 def test_race_settings_are_validated():
     assert rc.race_settings({}) is None
-    assert rc.race_settings({"seed_race": {"candidates": 3, "decide_at": 0.3}}) == (3, 0.3)
-    assert rc.race_settings({"seed_race": {"candidates": 2, "decide_at": 1}}) == (2, 1.0)
-    for bad, match in (({"candidates": 1}, "candidates"), ({"candidates": 2.5}, "candidates"),
-                       ({"decide_at": 1.5}, "decide_at"), ({"decide_at": 0}, "decide_at"),
-                       ({"decide_at": "soon"}, "decide_at"),
+    assert rc.race_settings({"seed_race": {"candidates": 3}}) == 3
+    assert rc.race_settings({"seed_race": {}}) is None  # an empty entry is no race
+    assert rc.race_settings({"seed_race": {"candidates": 2.0}}) == 2
+    for bad, match in (({"candidates": 1}, "candidates=1"), ({"candidates": 2.5}, "candidates"),
+                       ({"candidates": "two"}, "candidates"),
+                       ({"candidates": 2, "decide_at": 0.7}, "decide_at=0.7: removed"),
+                       ({"decide_at": 1}, "decide_at=1: removed"),
                        ({"seeds": 2}, "seeds")):
         with pytest.raises(ValueError, match=match):
             rc.race_settings({"seed_race": bad})
@@ -30,11 +32,12 @@ def _fake_candidates(run_dir, seeds, steps):
 
 
 @pytest.mark.parametrize("rates, chosen", [((0.0, 0.49), 1), ((0.3, 0.1), 0), ((0.0, 0.0), 0)])
-def test_the_seed_whose_checkpoint_lands_more_continues(tmp_path, monkeypatch, rates, chosen):
-    """The decision is the env's verdict on the validation cases; a tie keeps the user's seed."""
+def test_the_seed_whose_final_policy_lands_more_wins(tmp_path, monkeypatch, rates, chosen):
+    """Without the candidates' own selection, their final checkpoints are scored here; the
+    decision is the env's verdict on the validation cases; a tie keeps the user's seed."""
     import agents.rl.selection as sel
 
-    hp = {"n_timesteps": 1000, "seed_race": {"candidates": 2, "decide_at": 0.35},
+    hp = {"n_timesteps": 352, "seed_race": {"candidates": 2},
           "select_checkpoint": {"states": 7}}
     run = {"env": ENV_ID, "seed": 15}
     _fake_candidates(tmp_path, (15, 16), 352)
@@ -63,11 +66,11 @@ def test_the_seed_whose_checkpoint_lands_more_continues(tmp_path, monkeypatch, r
 
 
 def test_a_race_decided_at_the_end_keeps_the_best_selected_policy(tmp_path, monkeypatch):
-    """decide_at 1: each candidate's own checkpoint selection scores it (nothing is scored
-    again), and the winner's final policy, not its last checkpoint, becomes the run's."""
+    """Each candidate's own checkpoint selection scores it (nothing is scored again), and the
+    winner's final policy, not its last checkpoint, becomes the run's."""
     import agents.rl.selection as sel
 
-    hp = {"n_timesteps": 1000, "seed_race": {"candidates": 2, "decide_at": 1.0},
+    hp = {"n_timesteps": 1000, "seed_race": {"candidates": 2},
           "select_checkpoint": {"states": 7}}
     _fake_candidates(tmp_path, (15, 16), 1000)
     for s, rates in ((15, (0.9, 0.97)), (16, (0.98, 0.2))):
@@ -91,80 +94,94 @@ def test_a_race_decided_at_the_end_keeps_the_best_selected_policy(tmp_path, monk
     assert not rc.race_trained_to_end(dict(hp, n_timesteps=2000), tmp_path)  # -n extends it
 
 
-def _quick_race(tmp_path, decide_at: float, n_timesteps: int):
+def _quick_race(tmp_path, n_timesteps: int, extra=()):
     """``train.py --quick`` on the pinpoint env with a race of seeds 3 and 4; the run dir."""
     run_dir = tmp_path / "run"
     assert tr.main(["--quick", "--env", ENV_ID, "--seed", "3", "--run-dir", str(run_dir),
                     "--no-progress", "--no-eval", "--no-tensorboard",
-                    "--hyperparams", f"seed_race={{candidates: 2, decide_at: {decide_at}}}",
-                    f"n_timesteps={n_timesteps}"]) == 0
+                    "--hyperparams", "seed_race={candidates: 2}",
+                    f"n_timesteps={n_timesteps}", *extra]) == 0
     return run_dir
 
 
-def test_quick_race_to_the_end(tmp_path, capfd):
-    """decide_at 1: both quick candidates train to the end and select their checkpoints in
-    their own processes; the run adopts the winner's selected policy without training again."""
-    run_dir = _quick_race(tmp_path, 1.0, 2048)
+def test_quick_race_end_to_end_and_its_resume(tmp_path, capfd):
+    """Both quick candidates train to the end and select their checkpoints in executor worker
+    processes; the run adopts the winner's selected policy without training again. Resuming a
+    race interrupted after one candidate finished trains only the other one (from its own
+    checkpoint), and the race is decided again."""
+    run_dir = _quick_race(tmp_path, 2048)
     out = capfd.readouterr().out
     assert "[seed 3] selection: the checkpoint" in out and "[seed 4] selection" in out
+    assert "[seed 3] step" in out and "[seed 4] step" in out
     assert "Trained" not in out.replace("[seed 3] Trained", "").replace("[seed 4] Trained", "")
     decision = yaml.safe_load((run_dir / "race.yml").read_text())
+    assert decision["seeds"] == [3, 4] and decision["decide_at_steps"] == 2048
     winner = run_dir / "race" / f"seed_{decision['chosen_seed']}"
     for name in ("model.zip", "vecnormalize.pkl", "selection.yml"):
         assert (run_dir / name).read_bytes() == (winner / name).read_bytes()
     model, _, _ = tr.load_trained(run_dir)
     assert model.num_timesteps == 2048
-    assert yaml.safe_load((run_dir / "args.yml").read_text())["seed"] == \
-        decision["chosen_seed"]
-
-
-def test_a_candidate_short_of_the_decision_step_is_an_error(tmp_path, monkeypatch):
-    hp = {"n_timesteps": 1000, "seed_race": {"candidates": 2, "decide_at": 0.5}}
-    _fake_candidates(tmp_path, (1, 2), 256)
-    monkeypatch.setattr(rc, "_train_candidates", lambda *a, **k: None)
-    with pytest.raises(RuntimeError, match="no checkpoint at step >= 500"):
-        rc.seed_race(hp, {"env": ENV_ID, "seed": 1}, tmp_path)
-
-
-def test_quick_race_end_to_end_and_its_resume(tmp_path, capfd):
-    """Two quick pinpoint candidates train in child processes to the decision step (a rollout
-    boundary, the discarded step rolled back), the winner continues to the end; re-deciding
-    from the candidates' checkpoints (a race interrupted after training) gives the same seed
-    without training again."""
-    run_dir = _quick_race(tmp_path, 0.5, 4096)
-    out = capfd.readouterr().out
-    assert "[seed 3] step" in out and "[seed 4] step" in out
-    decision = yaml.safe_load((run_dir / "race.yml").read_text())
-    assert decision["seeds"] == [3, 4] and decision["decide_at_steps"] == 2048
     args = yaml.safe_load((run_dir / "args.yml").read_text())
     assert args["seed"] == decision["chosen_seed"] and args["race_seed"] == 3
-    for s in (3, 4):  # each candidate stopped at the rollout boundary, with its checkpoint
-        cand = run_dir / "race" / f"seed_{s}"
-        model, _, _ = tr.load_trained(cand)
-        assert model.num_timesteps == 2048
-        assert (cand / "checkpoints" / "rl_model_2048_steps.zip").exists()
-        # a candidate is an ordinary run: --resume continues it to the full length
-        assert "stop_at_steps" not in yaml.safe_load((cand / "args.yml").read_text())
-        cand_hp = yaml.safe_load((cand / "config.yml").read_text())
+    for s in (3, 4):  # a candidate is an ordinary run
+        cand_hp = yaml.safe_load((run_dir / "race" / f"seed_{s}" / "config.yml").read_text())
         assert "seed_race" not in cand_hp and cand_hp["select_checkpoint"]
-    model, _, _ = tr.load_trained(run_dir)
-    assert model.num_timesteps == 4096
-    winner = run_dir / "race" / f"seed_{args['seed']}" / "checkpoints"
-    assert (run_dir / "checkpoints" / "rl_model_2048_steps.zip").read_bytes() == \
-        (winner / "rl_model_2048_steps.zip").read_bytes()
-    # back to "candidates trained, race not decided" (an interruption after the candidates'
-    # training): --resume decides again from the same checkpoints, without training them again,
-    # and trains the winner to the end
+    # back to "seed 4 interrupted after its first checkpoint, race not decided": --resume
+    # trains seed 4 from that checkpoint to the end, not seed 3, and decides again
     import shutil
 
+    cand4 = run_dir / "race" / "seed_4"
+    first = sorted((cand4 / "checkpoints").glob("rl_model_*_steps.zip"),
+                   key=lambda p: int(p.stem.split("_")[2]))[0]
+    kept = int(first.stem.split("_")[2])
+    assert kept < 2048
+    for f in (cand4 / "checkpoints").iterdir():
+        if f.suffix in (".zip", ".pkl") and int(f.stem.rsplit("_", 2)[1]) > kept:
+            f.unlink()
+    for name in ("model.zip", "vecnormalize.pkl", "selection.yml"):
+        (cand4 / name).unlink()
+        (run_dir / name).unlink(missing_ok=True)
     shutil.rmtree(run_dir / "checkpoints")
     (run_dir / "race.yml").unlink()
     (run_dir / "args.yml").write_text(yaml.safe_dump(dict(args, seed=3)))
     assert tr.main(["--resume", str(run_dir), "--no-progress"]) == 0
     out = capfd.readouterr().out
-    assert "[seed" not in out  # no candidate trained again
-    again = yaml.safe_load((run_dir / "args.yml").read_text())
-    assert again["seed"] == args["seed"]
-    assert yaml.safe_load((run_dir / "race.yml").read_text())["chosen_seed"] == args["seed"]
+    assert "[seed 3]" not in out  # finished before the interruption: not trained again
+    assert f"[seed 4] Resuming {cand4} from step {kept} of 2048" in out
+    again = yaml.safe_load((run_dir / "race.yml").read_text())
+    assert again["scores"][0] == decision["scores"][0]  # seed 3's own selection, kept
+    assert yaml.safe_load((run_dir / "args.yml").read_text())["seed"] == again["chosen_seed"]
     model, _, _ = tr.load_trained(run_dir)
-    assert model.num_timesteps == 4096
+    assert model.num_timesteps == 2048
+
+
+def test_a_candidate_short_of_the_end_is_an_error(tmp_path, monkeypatch):
+    hp = {"n_timesteps": 1000, "seed_race": {"candidates": 2}}
+    _fake_candidates(tmp_path, (1, 2), 256)
+    monkeypatch.setattr(rc, "_train_candidates", lambda *a, **k: None)
+    with pytest.raises(RuntimeError, match="no checkpoint at step >= 1000"):
+        rc.seed_race(hp, {"env": ENV_ID, "seed": 1}, tmp_path)
+
+
+def test_candidates_run_as_keyed_executor_tasks(tmp_path, monkeypatch):
+    """The race hands its candidates to optimizers.common.executor.run_tasks as module-level
+    tasks keyed ("seed_race", first seed, index), one worker per candidate; finished candidates
+    are not submitted again."""
+    import optimizers.common.executor as ex
+
+    seen = {}
+
+    def fake_run_tasks(tasks, executor):
+        seen.update(keys=[t.key for t in tasks], fn=[t.fn for t in tasks],
+                    workers=executor.n_workers)
+        return {}, None
+
+    monkeypatch.setattr(ex, "run_tasks", fake_run_tasks)
+    hp = {"n_timesteps": 352, "seed_race": {"candidates": 3}}
+    _fake_candidates(tmp_path, (8,), 352)  # seed 8 is done
+    dirs = [tmp_path / "race" / f"seed_{s}" for s in (7, 8, 9)]
+    rc._train_candidates(hp, {"env": ENV_ID, "seed": 7, "race_seed": 7}, [7, 8, 9], dirs)
+    assert seen == {"keys": [ex.TaskKey("seed_race", 7, 0), ex.TaskKey("seed_race", 7, 2)],
+                    "fn": [rc.train_candidate] * 2, "workers": 2}
+    args = yaml.safe_load((dirs[2] / "args.yml").read_text())
+    assert args["seed"] == 9 and "race_seed" not in args and args["no_eval"]

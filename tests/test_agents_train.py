@@ -6,6 +6,7 @@ import yaml
 from stable_baselines3.common.callbacks import BaseCallback
 
 from agents import train as tr
+from agents.common.runs import latest_checkpoint
 from agents.common.sb3_law import SB3Law
 from agents.evaluation.compare import compare, rollout
 from agents.evaluation.report import markdown_table
@@ -68,7 +69,7 @@ def test_resume_continues_the_step_counter(tmp_path):
     rollout_steps = n_envs * n_steps
     with pytest.raises(KeyboardInterrupt):
         tr.train(hp, run, run_dir, callbacks=[_InterruptAt(rollout_steps + 5 * n_envs)])
-    ckpt, steps = tr.latest_checkpoint(run_dir)
+    ckpt, steps = latest_checkpoint(run_dir)
     # interrupted 5 steps into the second rollout: the checkpoint holds the trained steps (the
     # partial rollout was not trained on and is collected again after the resume)
     assert steps == rollout_steps
@@ -78,6 +79,49 @@ def test_resume_continues_the_step_counter(tmp_path):
     assert model.num_timesteps == 3072
     timing = yaml.safe_load((run_dir / "timing.yml").read_text())
     assert timing[-1]["steps_this_session"] == 3072 - steps
+
+
+def test_callbacks_are_configured_by_their_constructors(tmp_path):
+    """agents.rl.callbacks: the checkpoint callback saves at rollout starts every save_freq env
+    steps, reports each save (on_save) and its newest step (last_saved_steps); wrappers are found
+    by type, subclasses included; bad settings are refused by name."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+
+    from agents.common.vec_env import make_sb3_vec_env
+    from agents.rl.callbacks import (
+        CriticWarmupCallback,
+        EpisodeInfoCallback,
+        RolloutCheckpointCallback,
+        find_wrapper,
+    )
+    from agents.rl.curriculum import OptimalStartCurriculum
+
+    class Monitor(VecMonitor):
+        pass
+
+    monitor = Monitor(make_sb3_vec_env(ENV_ID, 2, seed=0))
+    venv = VecNormalize(monitor)
+    assert find_wrapper(venv, VecMonitor) is monitor and find_wrapper(venv, VecNormalize) is venv
+    assert find_wrapper(venv, OptimalStartCurriculum) is None
+    saves = []
+    cb = RolloutCheckpointCallback(tmp_path, 32, {"n_steps": 8},
+                                   on_save=lambda: saves.append(cb.last_saved_steps))
+    assert cb.last_saved_steps is None
+    model = PPO("MlpPolicy", venv, n_steps=8, batch_size=16, n_epochs=1, seed=0, device="cpu")
+    model.learn(64, callback=[cb, EpisodeInfoCallback(64, summary_every=0),
+                              CriticWarmupCallback(16)])
+    assert saves == [32] and cb.last_saved_steps == 32  # rollouts start at 0, 16, 32, 48
+    assert latest_checkpoint(tmp_path)[1] == 32
+    assert (tmp_path / "checkpoints" / "rl_model_vecnormalize_32_steps.pkl").exists()
+    assert yaml.safe_load((tmp_path / "checkpoints" / "config.yml").read_text()) == {"n_steps": 8}
+    assert cb.save_now().name == "rl_model_64_steps.zip" and cb.last_saved_steps == 64
+    assert all(p.requires_grad for p in model.policy.parameters())  # warm-up released
+    with pytest.raises(ValueError, match="critic_warmup_steps=-1"):
+        CriticWarmupCallback(-1)
+    with pytest.raises(ValueError, match="summary_every=-5"):
+        EpisodeInfoCallback(64, summary_every=-5)
+    venv.close()
 
 
 def test_seed_makes_a_run_repeatable(tmp_path):

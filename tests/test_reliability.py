@@ -438,6 +438,43 @@ def test_training_killed_at_a_random_point_resumes(tmp_path):
     _compare_with_uninterrupted(run_dir, ref)
 
 
+def test_seed_race_stopped_by_sigterm_checkpoints_every_candidate_and_resumes(tmp_path):
+    """SIGTERM to a seed race (its candidates are executor tasks in worker processes): every
+    candidate writes a checkpoint, the run exits with 130 and leaves no worker behind, and
+    ``--resume`` trains the candidates on from there and decides the race."""
+    run_dir = tmp_path / "race"
+    n = 8192
+    proc = _python(_TRAIN_CLI, "--quick", "--env", "LunarPinpointLanding-v2", "--seed", "3",
+                   "--run-dir", str(run_dir), "--no-progress", "--no-eval", "--no-tensorboard",
+                   "--hyperparams", "seed_race={candidates: 2}", f"n_timesteps={n}")
+    cands = [run_dir / "race" / f"seed_{s}" / "checkpoints" for s in (3, 4)]
+    try:
+        _wait_for(lambda: all(any(c.glob("rl_model_*_steps.zip")) for c in cands), 300, proc)
+        workers = _children(proc.pid)
+        proc.send_signal(signal.SIGTERM)
+        out = proc.communicate(timeout=120)[0].decode()
+    finally:
+        proc.kill()
+        proc.wait()
+    assert proc.returncode == 130, out[-3000:]
+    assert "[seed 3] Interrupted at step" in out and "[seed 4] Interrupted at step" in out
+    assert "continue with: python train.py --resume" in out
+    def alive(pid):
+        try:
+            return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+        except OSError:
+            return False
+
+    _wait_for(lambda: not any(alive(p) for p in workers), 10)  # exit_with_parent: < 1 s
+    stopped = [max(int(f.stem.split("_")[2]) for f in c.glob("rl_model_*_steps.zip"))
+               for c in cands]
+    assert all(0 < s < n for s in stopped), stopped
+    assert _resume(run_dir) == 0
+    race = yaml.safe_load((run_dir / "race.yml").read_text())
+    assert race["seeds"] == [3, 4] and race["decide_at_steps"] == n
+    assert _steps_of(run_dir) == n
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("trial", range(4))
 def test_training_killed_at_random_points_slow(tmp_path, trial):

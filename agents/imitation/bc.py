@@ -13,9 +13,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from agents.common.actor import actor_parameters
 from agents.common.runs import write_text_atomic
 from agents.imitation.policy import _split_by_trajectory, build_model, fit_policy, policy_inputs
-from agents.rl.training import actor_parameters
 
 _BC_CKPT = re.compile(r"^bc_epoch_(\d+)\.pt$")
 

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.rl.training import actor_parameters
+from agents.common.actor import actor_parameters
 
 # ----------------------------------------------------------------------------- model
 

@@ -9,22 +9,23 @@ validation cases (:data:`agents.rl.selection.VALIDATION_SEED`.., never the evalu
 successive halving over seeds (Jamieson & Talwalkar 2016; Li et al. 2018, Hyperband), decided
 by the env's own verdict.
 
-``decide_at`` < 1 decides at that share of training, on each candidate's newest checkpoint,
-and continues the winner alone (``--resume`` from its checkpoint: same schedules, same total
-steps). ``decide_at: 1`` (the pinpoint entry since the seventh session) trains every candidate
-to the end, each with its own checkpoint selection in its own process, and the run adopts the
-winner's selected policy: a run alone uses one core, so the second candidate's last 30 % costs
-little wall time (training and selection 690-811 s to the end, ~750 s decided at 70 %), and
-the choice is made on the final policies instead of on a guess at 70 % (`--seed 28` with the
-success bonus: seed 29, continued alone from 70 %, ended at 93.1 %; trained in one go it ends
-at 99.0 %; docs/notes/issue-16.md, "Seventh session").
+Every candidate trains to the end, with its own checkpoint selection, and the run adopts the
+winner's selected policy: a run alone uses one core, so racing to the end costs little wall time
+(training and selection 690-811 s), and the choice is made on the final policies. (Deciding at
+70 % and continuing the winner alone was measured worse and removed in issue 28: ``--seed 28``'s
+seed 29, continued alone from 70 %, ended at 93.1 %, trained in one go at 99.0 %;
+docs/notes/issue-16.md, "Seventh session".)
+
+The candidates are keyed tasks on the project's executor
+(:class:`optimizers.common.executor.LocalExecutor`, one worker per candidate): a candidate whose
+run directory already holds its final checkpoint and selection counts as done and is not
+trained again.
 
 Layout: the candidates are full run directories ``<run>/race/seed_<s>`` (each can be resumed
 or evaluated alone); ``<run>/race.yml`` records the scores and the chosen seed; the winner's
-checkpoints (and, decided at the end, its ``model.zip``, ``vecnormalize.pkl`` and
-``selection.yml``) are copied into the run and the run's ``args.yml`` gets its seed, so the
-rest is an ordinary run. An interrupted race resumes its candidates (``python train.py
---resume <run>``).
+checkpoints, ``model.zip``, ``vecnormalize.pkl`` and ``selection.yml`` are copied into the run
+and the run's ``args.yml`` gets its seed, so the rest is an ordinary run. An interrupted race
+resumes its candidates (``python train.py --resume <run>``).
 """
 
 from __future__ import annotations
@@ -46,25 +47,30 @@ from optimizers.common.checkpoint import atomic_write_bytes
 __all__ = ["race_done", "race_pending", "race_settings", "race_trained_to_end", "seed_race"]
 
 
-def race_settings(hp: dict[str, Any]) -> tuple[int, float] | None:
-    """``(candidates, decide_at)`` of a ``seed_race`` entry, or None without one.
+def race_settings(hp: dict[str, Any]) -> int | None:
+    """The number of candidates of a ``seed_race: {candidates: N}`` entry, or None without one.
 
-    ``candidates``: seeds trained side by side (>= 2); ``decide_at``: share of ``n_timesteps``
-    at which the race is decided, in (0, 1]; at 1 every candidate trains to the end (with its
-    own checkpoint selection) and the race keeps the best final policy."""
+    ``candidates``: seeds trained side by side to the end (an integer >= 2, default 2).
+
+    Raises
+    ------
+    ValueError
+        ``candidates`` is not an integer >= 2, or the entry has another key (``decide_at``, of
+        earlier versions, is named as removed).
+    """
     spec = hp.get("seed_race")
     if not spec:
         return None
     from lunar_env.validation import require_number, require_option_keys
 
-    require_option_keys("seed_race", spec, ("candidates", "decide_at"))
+    if hasattr(spec, "keys") and "decide_at" in spec:
+        raise ValueError(f"seed_race decide_at={spec['decide_at']!r}: removed in issue 28 (the "
+                         "race is decided at the end); drop the key")
+    require_option_keys("seed_race", spec, ("candidates",))
     k = require_number("seed_race candidates", spec.get("candidates", 2))
-    at = require_number("seed_race decide_at", spec.get("decide_at", 0.7))
     if k != int(k) or k < 2:
         raise ValueError(f"seed_race candidates={k!r} must be an integer >= 2")
-    if not 0.0 < at <= 1.0:
-        raise ValueError(f"seed_race decide_at={at!r} must be in (0, 1]")
-    return int(k), float(at)
+    return int(k)
 
 
 def race_done(run_dir: Path) -> bool:
@@ -79,10 +85,9 @@ def race_pending(hp: dict[str, Any], run_dir: Path) -> bool:
 
 
 def race_trained_to_end(hp: dict[str, Any], run_dir: Path) -> bool:
-    """The run's race was decided at the full length and its winner's final policy is the
+    """The run's race is over and its winner's final policy, trained to ``n_timesteps``, is the
     run's: nothing is left to train (``train.py -n`` extending the run trains again)."""
-    settings = race_settings(hp)
-    if settings is None or settings[1] < 1.0 or not race_done(run_dir):
+    if race_settings(hp) is None or not race_done(run_dir):
         return False
     return _reached(run_dir, int(hp["n_timesteps"])) and (Path(run_dir) / "model.zip").exists()
 
@@ -93,34 +98,47 @@ def _reached(run_dir: Path, steps: int) -> bool:
     return bool(ck) and ck[0][0] >= steps
 
 
-def _candidate_done(cand: Path, hp: dict[str, Any], stop_at: int | None) -> bool:
-    """A candidate finished before an interruption: trained to ``stop_at`` or, to the end
-    (None), trained and its checkpoint selection written."""
-    if stop_at is not None:
-        return _reached(cand, stop_at)
+def _candidate_done(cand: Path, hp: dict[str, Any]) -> bool:
+    """A candidate finished before an interruption: trained to the end and, with
+    ``select_checkpoint``, its checkpoint selection written."""
     return _reached(cand, int(hp["n_timesteps"])) and \
         (not hp.get("select_checkpoint") or (cand / "selection.yml").exists())
 
 
-def _candidate_main(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> None:
-    """Child process: train one candidate to its stop step (or resume it there)."""
+def train_candidate(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> int:
+    """Executor task: train one candidate to the end in ``cand_dir`` (resumed from its newest
+    checkpoint when it has one), its console lines prefixed ``[seed <s>]``; returns its final
+    ``num_timesteps``.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        Interrupted (Ctrl-C or SIGTERM): the candidate wrote its checkpoint first.
+    RuntimeError
+        Training failed; the message names the seed and the candidate's run directory.
+    """
     from agents.common.runs import resumable_checkpoint
     from agents.rl.training import train
 
-    prefix = f"[seed {run['seed']}] "
-    sys.stdout = _Prefixed(sys.stdout, prefix)
-    sys.stderr = _Prefixed(sys.stderr, prefix)
     cand = Path(cand_dir)
+    streams = sys.stdout, sys.stderr
+    sys.stdout = _Prefixed(streams[0], f"[seed {run['seed']}] ")
+    sys.stderr = _Prefixed(streams[1], f"[seed {run['seed']}] ")
     try:
-        resumable_checkpoint(cand, needs_vecnormalize=bool(hp.get("normalize")),
-                             log=lambda msg: None)
-        resume = True
-    except FileNotFoundError:
-        resume = False
-    try:
-        train(hp, run, cand, resume=resume)
-    except KeyboardInterrupt:
-        sys.exit(130)
+        try:
+            resumable_checkpoint(cand, needs_vecnormalize=bool(hp.get("normalize")),
+                                 log=lambda msg: None)
+            resume = True
+        except FileNotFoundError:
+            resume = False
+        try:
+            model, _ = train(hp, run, cand, resume=resume)
+        except Exception as exc:
+            raise RuntimeError(f"seed race: candidate seed {run['seed']} failed ({exc!r}); its "
+                               f"run directory is {cand}") from exc
+        return int(model.num_timesteps)
+    finally:
+        sys.stdout, sys.stderr = streams
 
 
 class _Prefixed:
@@ -149,36 +167,35 @@ class _Prefixed:
 
 def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[str, Any]:
     """Run (or finish) the seed race of ``run_dir``; returns the run arguments with the chosen
-    seed, ``args.yml`` rewritten and the winner's checkpoints in ``run_dir/checkpoints``, ready
-    for ``train(hp, run, run_dir, resume=True)``. Idempotent once decided."""
+    seed, ``args.yml`` rewritten and the winner's checkpoints and final policy in ``run_dir``.
+    Idempotent once decided.
+
+    Raises
+    ------
+    RuntimeError
+        A candidate failed, or has no checkpoint at ``n_timesteps`` after training.
+    KeyboardInterrupt
+        Interrupted: every candidate wrote its checkpoint; ``--resume`` continues the race.
+    """
     from agents.rl.selection import VALIDATION_SEED, score_candidates
 
     run_dir = Path(run_dir)
-    k, decide_at = race_settings(hp)
+    k = race_settings(hp)
     n_total = int(hp["n_timesteps"])
-    full = decide_at >= 1.0
-    stop_at = n_total if full else max(int(decide_at * n_total), 1)
     race_file = run_dir / "race.yml"
     if race_file.exists():
         decision = yaml.safe_load(race_file.read_text())
     else:
         base_seed = int(run.get("race_seed", run["seed"]))
         seeds = [base_seed + i for i in range(k)]
-        # select_checkpoint stays: it runs only at the full length (in the candidate's own
-        # process when the race is decided there), and a candidate continued with --resume
-        # ends like an ordinary run
+        # select_checkpoint stays: each candidate selects its final policy in its own process
         cand_hp = {key: v for key, v in hp.items() if key != "seed_race"}
         dirs = [run_dir / "race" / f"seed_{s}" for s in seeds]
-        if full:
-            print(f"Seed race: seeds {', '.join(map(str, seeds))} train side by side to the "
-                  f"end ({n_total:,} steps); the final policy that lands more validation cases "
-                  f"is the run's (agents/rl/race.py)", flush=True)
-        else:
-            print(f"Seed race: seeds {', '.join(map(str, seeds))} train side by side to step "
-                  f"{stop_at:,} of {n_total:,}; the one that lands more validation cases "
-                  f"continues alone (agents/rl/race.py)", flush=True)
+        print(f"Seed race: seeds {', '.join(map(str, seeds))} train side by side to the "
+              f"end ({n_total:,} steps); the final policy that lands more validation cases "
+              f"is the run's (agents/rl/race.py)", flush=True)
         t0 = time.perf_counter()
-        _train_candidates(cand_hp, run, seeds, dirs, None if full else stop_at)
+        _train_candidates(cand_hp, run, seeds, dirs)
         race_wall_s = time.perf_counter() - t0
         sel = hp.get("select_checkpoint") or {}
         n_states = int(sel.get("states", 100))
@@ -186,12 +203,12 @@ def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[st
         found = []
         for s, d in zip(seeds, dirs, strict=True):
             ck = checkpoints(d)
-            if not ck or ck[0][0] < stop_at:
+            if not ck or ck[0][0] < n_total:
                 raise RuntimeError(f"seed race: candidate {d} has no checkpoint at step "
-                                   f">= {stop_at}")
+                                   f">= {n_total}")
             found.append((s, ck[0][1], ck[0][0]))
-        scores = _selected_scores(dirs, n_states, val_seed) if full else None
-        if scores is None:
+        scores = _selected_scores(dirs, n_states, val_seed)
+        if scores is None:  # no checkpoint selection: the final policies are scored here
             scores = score_candidates([(s, path) for s, path, _ in found], run["env"],
                                       hp.get("env_kwargs"), hp.get("obs_features"), n_states,
                                       val_seed, run.get("device", "cpu"), label="seed")
@@ -203,12 +220,12 @@ def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[st
                     "scores": [{"seed": s, "success_rate": r["success_rate"]}
                                for s, r in zip(seeds, scores, strict=True)]}
         write_text_atomic(race_file, yaml.safe_dump(decision, sort_keys=False))
-        print(f"Seed race: seed {seeds[best]} {'wins' if full else 'continues'} "
+        print(f"Seed race: seed {seeds[best]} wins "
               f"({100 * scores[best]['success_rate']:.1f} % of {n_states} validation cases; "
               + ", ".join(f"seed {s}: {100 * r['success_rate']:.1f} %"
                           for s, r in zip(seeds, scores, strict=True)) + ")", flush=True)
     chosen = int(decision["chosen_seed"])
-    _adopt(run_dir / "race" / f"seed_{chosen}", run_dir, final=full)
+    _adopt(run_dir / "race" / f"seed_{chosen}", run_dir)
     run = dict(run)
     run.setdefault("race_seed", int(decision["seeds"][0]))
     run["seed"] = chosen
@@ -232,13 +249,13 @@ def _selected_scores(dirs: list[Path], n_states: int, val_seed: int
     return out
 
 
-def _adopt(cand: Path, run_dir: Path, final: bool = False) -> None:
-    """Copy the winner's checkpoints, TensorBoard log and timing into the run (atomic rename of
-    the checkpoint folder; skipped when already there); ``final``: also its final policy
-    (``model.zip``, ``vecnormalize.pkl``, ``selection.yml``), before the checkpoints, so that a
-    run whose checkpoints are there has its final policy too."""
+def _adopt(cand: Path, run_dir: Path) -> None:
+    """Copy the winner's final policy (``model.zip``, ``vecnormalize.pkl``, ``selection.yml``),
+    then its checkpoints (atomic rename of the folder: a run whose checkpoints are there has its
+    final policy too), TensorBoard log and timing into the run; each skipped when already
+    there."""
     target = run_dir / "checkpoints"
-    if final and not target.exists():
+    if not target.exists():
         for name in ("model.zip", "vecnormalize.pkl", "selection.yml"):
             if (cand / name).exists():
                 atomic_write_bytes(run_dir / name, (cand / name).read_bytes())
@@ -255,14 +272,18 @@ def _adopt(cand: Path, run_dir: Path, final: bool = False) -> None:
 
 
 def _train_candidates(hp: dict[str, Any], run: dict[str, Any], seeds: list[int],
-                      dirs: list[Path], stop_at: int | None) -> None:
-    """Train every candidate to ``stop_at`` (None: to the end, checkpoint selection included)
-    in its own process (one per core); a Ctrl-C or SIGTERM checkpoints each and propagates as
-    KeyboardInterrupt."""
-    ctx = multiprocessing.get_context("spawn")
-    procs = []
-    for s, d in zip(seeds, dirs, strict=True):
-        if _candidate_done(d, hp, stop_at):
+                      dirs: list[Path]) -> None:
+    """Train every candidate not done yet to the end (checkpoint selection included) as a task
+    :func:`train_candidate` keyed ``("seed_race", seeds[0], i)`` on a
+    :class:`~optimizers.common.executor.LocalExecutor` with one worker per candidate. A Ctrl-C
+    or SIGTERM lets each candidate write its checkpoint (SIGTERM is passed on to the workers),
+    then propagates as KeyboardInterrupt; a failed candidate stops the others the same way
+    before its error propagates."""
+    from optimizers.common.executor import LocalExecutor, Task, TaskKey, run_tasks
+
+    tasks = []
+    for i, (s, d) in enumerate(zip(seeds, dirs, strict=True)):
+        if _candidate_done(d, hp):
             continue
         d.mkdir(parents=True, exist_ok=True)
         cand_run = dict(run, seed=s, run_dir=str(d), no_progress=True, eval_states=0,
@@ -270,35 +291,33 @@ def _train_candidates(hp: dict[str, Any], run: dict[str, Any], seeds: list[int],
         cand_run.pop("race_seed", None)
         write_text_atomic(d / "config.yml", yaml.safe_dump(hp, sort_keys=True))
         write_text_atomic(d / "args.yml", yaml.safe_dump(cand_run, sort_keys=True))
-        if stop_at is not None:
-            # handed to the child, not recorded: `train.py --resume <candidate>` continues a
-            # candidate (a loser, say) to the run's full length
-            cand_run["stop_at_steps"] = stop_at
-        p = ctx.Process(target=_candidate_main, args=(hp, cand_run, str(d)),
-                        name=f"seed-race-{s}")
-        p.start()
-        procs.append((s, d, p))
+        tasks.append(Task(TaskKey("seed_race", int(seeds[0]), i), train_candidate,
+                          (hp, cand_run, str(d))))
+    if not tasks:
+        return
 
-    def _on_sigterm(signum, frame):
-        for _, _, p in procs:  # each checkpoints on SIGTERM (agents.rl.training.train)
-            if p.is_alive():
-                os.kill(p.pid, signal.SIGTERM)
-        raise KeyboardInterrupt
+    def _stop_workers(signum=None, frame=None):
+        for p in multiprocessing.active_children():  # each checkpoints on SIGTERM (train())
+            os.kill(p.pid, signal.SIGTERM)
+        if signum is not None:
+            raise KeyboardInterrupt
 
-    old = signal.signal(signal.SIGTERM, _on_sigterm)
+    old = signal.signal(signal.SIGTERM, _stop_workers)
     try:
-        for _, _, p in procs:
-            p.join()
+        with LocalExecutor(len(tasks)) as executor:
+            run_tasks(tasks, executor)
     except KeyboardInterrupt:
-        for _, _, p in procs:  # the children got the Ctrl-C too: let them checkpoint
-            p.join()
+        _join_workers()  # the workers got the Ctrl-C (or SIGTERM) too: let them checkpoint
+        raise
+    except BaseException:
+        _stop_workers()
+        _join_workers()
         raise
     finally:
         signal.signal(signal.SIGTERM, old)
-    failed = [(s, d, p.exitcode) for s, d, p in procs if p.exitcode != 0]
-    if any(code == 130 for *_, code in failed):
-        raise KeyboardInterrupt
-    if failed:
-        s, d, code = failed[0]
-        raise RuntimeError(f"seed race: candidate seed {s} failed (exit code {code}); its run "
-                           f"directory is {d}")
+
+
+def _join_workers() -> None:
+    """Wait for this process's worker processes to end."""
+    for p in multiprocessing.active_children():
+        p.join()

@@ -1,5 +1,5 @@
-"""The training core of :mod:`agents.train`: build the training env, the callbacks, and run
-or continue one SB3 run in a run directory.
+"""The training core of :mod:`agents.train`: build the training env and run or continue one
+SB3 run in a run directory (its callbacks are the classes of :mod:`agents.rl.callbacks`).
 
 Split from the command line (:mod:`agents.train`) so that tools that train many runs (the
 hyperparameter search, :mod:`agents.rl.search`) depend on the core without an import cycle with
@@ -8,7 +8,6 @@ the CLI that dispatches to them.
 
 from __future__ import annotations
 
-import os
 import signal
 import sys
 import time
@@ -26,16 +25,11 @@ from agents.common.runs import (
     save_vecnormalize_atomic,
     write_text_atomic,
 )
-from agents.common.runs import latest_checkpoint as latest_checkpoint  # re-export (0.1 API)
-from agents.hyperparams import (
-    resolve_algo_kwargs,
-)
+from agents.hyperparams import resolve_algo_kwargs
 
 __all__ = ["train", "make_training_env", "DEFAULT_ENV_ID"]
 
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
-#: info keys averaged over finished episodes and written to TensorBoard under ``episode/``
-_EPISODE_INFO_KEYS = ("fuel_used_kg", "touchdown_speed_m_s", "miss_distance_m")
 
 
 def _is_native_env(env_id: str) -> bool:
@@ -70,7 +64,6 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
     """
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import VecMonitor
-    from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
 
     env_kwargs = dict(env_kwargs or {})
     if n_envs < 1:
@@ -100,27 +93,11 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
                              f"not {env_id!r}")
         venv = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
         return venv  # make_vec_env already wraps each env in Monitor
-    node, monitored = venv, False
-    while True:
-        if isinstance(node, VecMonitor):
-            monitored = True
-            break
-        if not isinstance(node, VecEnvWrapper):
-            break
-        node = node.venv
-    if not monitored:
+    from agents.rl.callbacks import find_wrapper
+
+    if find_wrapper(venv, VecMonitor) is None:
         venv = VecMonitor(venv)
     return venv
-
-
-def _find_wrapper(venv, class_name: str):
-    """The first wrapper named ``class_name`` in a VecEnv wrapper chain, or None."""
-    node = venv
-    while node is not None:
-        if type(node).__name__ == class_name:
-            return node
-        node = getattr(node, "venv", None)
-    return None
 
 
 def _normalize_kwargs(normalize: Any, gamma: float | None) -> dict[str, Any] | None:
@@ -136,176 +113,6 @@ def _normalize_kwargs(normalize: Any, gamma: float | None) -> dict[str, Any] | N
     if gamma is not None:
         kw.setdefault("gamma", gamma)
     return kw
-
-
-# ----------------------------------------------------------------------------- callbacks
-
-
-def _make_callbacks(run_dir: Path, save_freq: int, config: dict[str, Any]):
-    from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
-
-    class RolloutCheckpointCallback(CheckpointCallback):
-        """``CheckpointCallback`` that saves between rollouts, every ``save_freq`` env steps.
-
-        The save happens at the *start* of the next rollout, i.e. after the algorithm trained on
-        the previous one (SB3 calls ``on_rollout_end`` *before* ``train()``: a checkpoint taken
-        there counted a rollout the model had not learnt from, and a resumed run never trained
-        on it — issue 18, found by the kill-and-resume test). A resumed run therefore restarts
-        from a state where every counted step has been trained on exactly once. The
-        ``VecNormalize`` statistics, the replay buffer (off-policy) and the run's config are
-        saved alongside. ``save_freq`` counts env steps (all envs together), not calls.
-
-        ``stop_at`` (a seed-race candidate, :mod:`agents.rl.race`): at the first rollout start at
-        or after that step, the checkpoint of the last update is written (if it is not there
-        yet) and ``learn()`` ends, the schedules keeping the run's full length. SB3 ends on the
-        first ``on_step`` of that rollout, so the one batch step it discarded is rolled back
-        at the end of training.
-        """
-
-        def __init__(self) -> None:
-            super().__init__(save_freq=1, save_path=str(run_dir / "checkpoints"),
-                             name_prefix="rl_model", save_replay_buffer=True,
-                             save_vecnormalize=True, verbose=0)
-            self.save_every_steps = max(int(save_freq), 1)
-            self._last_saved = None
-            self.on_save = None  # called after every checkpoint (timing bookkeeping)
-            self.stop_at = None
-            self._stopping = False
-
-        def _on_training_start(self) -> None:
-            self._last_saved = self.model.num_timesteps
-            self._last_trained = self.model.num_timesteps
-
-        def _on_step(self) -> bool:
-            return not self._stopping
-
-        def _on_rollout_start(self) -> None:
-            # the previous rollout (if any) has been collected *and* trained on
-            self._last_trained = self.model.num_timesteps
-            self._stopping = self.stop_at is not None and self._last_trained >= self.stop_at
-            if (self.model.num_timesteps - self._last_saved >= self.save_every_steps
-                    or (self._stopping and self._last_saved != self._last_trained)):
-                self.save_now()
-
-        def _on_training_end(self) -> None:
-            if self._stopping:  # the discarded step of the untrained rollout
-                self.model.num_timesteps = self._last_trained
-
-        def save_now(self, interrupted: bool = False) -> Path:
-            """Write the checkpoint for the current ``num_timesteps`` and return its path.
-
-            ``interrupted``: called in the middle of a rollout (or of its training). An
-            on-policy algorithm has not trained on the partial rollout, so its step counter is
-            rolled back to the last trained rollout: the resumed run collects those steps again
-            and ends after exactly as many trained steps as an uninterrupted run.
-            """
-            from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
-
-            if interrupted and isinstance(self.model, OnPolicyAlgorithm):
-                self.model.num_timesteps = self._last_trained
-            self.num_timesteps = self.model.num_timesteps  # the parent names files after this
-            path = Path(self._checkpoint_path(extension="zip"))
-            path.parent.mkdir(parents=True, exist_ok=True)
-            # statistics and replay buffer first, the model last (each atomically): a model
-            # file therefore implies a complete checkpoint
-            vn = self.model.get_vec_normalize_env()
-            if vn is not None:
-                save_vecnormalize_atomic(vn, self._checkpoint_path("vecnormalize_", "pkl"))
-            if getattr(self.model, "replay_buffer", None) is not None:
-                rb = Path(self._checkpoint_path("replay_buffer_", "pkl"))
-                tmp = rb.with_name(f".{rb.name}.tmp.pkl")
-                self.model.save_replay_buffer(tmp)
-                os.replace(tmp, rb)
-            save_model_atomic(self.model, path)
-            cfg = path.parent / "config.yml"
-            if not cfg.exists():
-                write_text_atomic(cfg, yaml.safe_dump(config, sort_keys=True))
-            self._last_saved = self.model.num_timesteps
-            if self.on_save is not None:
-                self.on_save()
-            return path
-
-    class EpisodeInfoCallback(BaseCallback):
-        """Log the mean SI landing quantities of finished episodes (``episode/*``) and, every
-        ``summary_every`` env steps, print one summary line of the episodes finished since the
-        previous line (success rate, gate/touchdown speed, miss distance, fuel; with a
-        curriculum also the success of the episodes that started from the dispersion, the
-        evaluation's distribution, and the curriculum's state)."""
-
-        def __init__(self) -> None:
-            super().__init__()
-            self._acc: dict[str, list[float]] = {k: [] for k in _EPISODE_INFO_KEYS}
-            self._console: dict[str, list[float]] = {k: [] for k in (*_EPISODE_INFO_KEYS,
-                                                                       "is_success",
-                                                                       "dispersed_success")}
-            self.summary_every = 0
-            self.total_timesteps = 0
-            self._next_summary = 0
-            self._t0 = time.perf_counter()
-
-        def _on_training_start(self) -> None:
-            self._t0 = time.perf_counter()
-            if self.summary_every > 0:
-                self._next_summary = self.model.num_timesteps + self.summary_every
-
-        def _summary_line(self) -> str | None:
-            c = self._console
-            n = len(c["is_success"])
-            if n == 0:
-                return None
-            parts = [f"step {self.model.num_timesteps:,}/{self.total_timesteps:,}",
-                     f"{n} episodes", f"success {100 * np.mean(c['is_success']):.1f} %"]
-            labels = {"touchdown_speed_m_s": ("touchdown", "m/s", ".1f"),
-                      "miss_distance_m": ("miss", "m", ".0f"),
-                      "fuel_used_kg": ("fuel", "kg", ".1f")}
-            for key, (label, unit, spec) in labels.items():
-                if c[key]:
-                    parts.append(f"{label} {format(float(np.mean(c[key])), spec)} {unit}")
-            cur = _find_wrapper(self.training_env, "OptimalStartCurriculum")
-            if cur is not None:
-                if c["dispersed_success"]:
-                    parts.append(f"from dispersion {100 * np.mean(c['dispersed_success']):.1f} %"
-                                 f" of {len(c['dispersed_success'])}")
-                parts.append(f"curriculum p {cur.current_prob:.2f}")
-            parts.append(f"{time.perf_counter() - self._t0:.0f} s")
-            for v in c.values():
-                v.clear()
-            return " | ".join(parts)
-
-        def _on_step(self) -> bool:
-            dones = self.locals.get("dones")
-            infos = self.locals.get("infos")
-            if dones is None or infos is None:
-                return True
-            for i in np.flatnonzero(dones):
-                info = infos[i]
-                for k in _EPISODE_INFO_KEYS:
-                    v = info.get(k)
-                    if v is not None and np.isfinite(v):
-                        self._acc[k].append(float(v))
-                        self._console[k].append(float(v))
-                self._console["is_success"].append(float(bool(info.get("is_success"))))
-                f = info.get("start_fraction")
-                if f is not None and not np.isfinite(f):
-                    self._console["dispersed_success"].append(
-                        float(bool(info.get("is_success"))))
-            return True
-
-        def _on_rollout_end(self) -> None:
-            cur = _find_wrapper(self.training_env, "OptimalStartCurriculum")
-            if cur is not None:
-                self.logger.record("curriculum/start_prob", cur.current_prob)
-            for k, vals in self._acc.items():
-                if vals:
-                    self.logger.record(f"episode/{k}", float(np.mean(vals)))
-                    vals.clear()
-            if self.summary_every > 0 and self.model.num_timesteps >= self._next_summary:
-                self._next_summary = self.model.num_timesteps + self.summary_every
-                line = self._summary_line()
-                if line:
-                    print(line, flush=True)
-
-    return RolloutCheckpointCallback(), EpisodeInfoCallback()
 
 
 def _select_final(model, run_dir: Path, run: dict[str, Any], hp: dict[str, Any],
@@ -330,97 +137,6 @@ def _select_final(model, run_dir: Path, run: dict[str, Any], hp: dict[str, Any],
     return algo_class(algo).load(run_dir / "model.zip", device=run.get("device", "cpu"))
 
 
-def actor_parameters(policy, include_log_std: bool = True) -> list:
-    """The parameters of an SB3 actor-critic policy that only the actor uses (a features
-    extractor shared with the critic is left out); ``include_log_std`` False leaves out the
-    exploration noise too (behaviour cloning regresses the mean action only)."""
-    parts = [policy.mlp_extractor.policy_net, policy.action_net]
-    if not getattr(policy, "share_features_extractor", True):
-        parts.append(policy.pi_features_extractor)
-    params = [p for m in parts for p in m.parameters()]
-    log_std = getattr(policy, "log_std", None) if include_log_std else None
-    return params + ([log_std] if log_std is not None else [])
-
-
-def critic_warmup_callback(warmup_steps: int):
-    """SB3 callback that holds the actor fixed for the first ``warmup_steps`` env steps.
-
-    Why: a policy cloned from an expert (``--init-from``) comes with an untrained value head;
-    the first PPO updates would follow advantages computed from it and move a policy that
-    already lands. With the actor's parameters frozen (no gradient, so Adam leaves them alone)
-    the PPO updates fit only the value function until ``warmup_steps``.
-    """
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    class CriticWarmup(BaseCallback):
-        def _set(self, trainable: bool) -> None:
-            for p in actor_parameters(self.model.policy):
-                p.requires_grad_(trainable)
-                if not trainable:
-                    p.grad = None
-
-        def _on_training_start(self) -> None:
-            self._set(self.model.num_timesteps >= warmup_steps)
-
-        def _on_rollout_end(self) -> None:  # called just before each PPO update
-            self._set(self.model.num_timesteps >= warmup_steps)
-
-        def _on_step(self) -> bool:
-            return True
-
-        def _on_training_end(self) -> None:
-            self._set(True)
-
-    return CriticWarmup()
-
-
-def noise_anneal_callback(total_timesteps: int, start_fraction: float, final_log_std: float):
-    """SB3 callback: from ``start_fraction`` of training on, the Gaussian policy's exploration
-    noise is *set* (not learnt) on a line from its value then to ``final_log_std`` at the end.
-
-    Why (issue 16): PPO improves the noisy policy, the evaluation flies its mean, and on the
-    pinpoint env the two parted ways in the last ~30 s of the descent (one seed: 84 % of the
-    validation cases with its noise, 19 % without). Shrinking the noise at the end of training
-    makes the policy PPO last improves close to the one that is evaluated.
-    """
-    import torch as th
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    if not (0.0 <= start_fraction < 1.0):
-        raise ValueError(f"noise_anneal start_fraction={start_fraction!r} must be in [0, 1)")
-    if not np.isfinite(final_log_std):
-        raise ValueError(f"noise_anneal final_log_std={final_log_std!r} must be finite")
-    begin = start_fraction * total_timesteps
-
-    class NoiseAnneal(BaseCallback):
-        anchor = None
-
-        def _apply(self) -> None:
-            log_std = getattr(self.model.policy, "log_std", None)
-            t = self.model.num_timesteps
-            if log_std is None or t < begin:
-                return
-            if self.anchor is None:
-                self.anchor = log_std.detach().clone()
-            frac = min((t - begin) / max(total_timesteps - begin, 1.0), 1.0)
-            with th.no_grad():
-                log_std.copy_(self.anchor + frac * (final_log_std - self.anchor))
-
-        def _on_training_start(self) -> None:
-            self._apply()
-
-        def _on_rollout_start(self) -> None:  # after each PPO update, before collecting
-            self._apply()
-
-        def _on_training_end(self) -> None:  # the final model carries the final noise
-            self._apply()
-
-        def _on_step(self) -> bool:
-            return True
-
-    return NoiseAnneal()
-
-
 def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False,
           callbacks: list | None = None, on_resumed=None):
     """Train (or continue) one run; returns ``(model, run_dir)``.
@@ -429,9 +145,8 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     ``callbacks`` extra SB3 callbacks. A ``KeyboardInterrupt`` (Ctrl-C, or SIGTERM) raised during
     training writes a checkpoint and propagates. ``on_resumed()`` is called once a resumed
     checkpoint has loaded (the CLI records a changed config only then: a failed resume changes
-    nothing in the run directory). ``run["stop_at_steps"]`` (a seed-race candidate,
-    :mod:`agents.rl.race`) ends training at the first rollout boundary at or after that step, with
-    the schedules of the full ``n_timesteps`` and no checkpoint selection.
+    nothing in the run directory). With ``select_checkpoint`` in ``hp`` the final ``model.zip``
+    is the selected checkpoint (:mod:`agents.rl.selection`).
     """
     import torch
     from stable_baselines3.common.utils import set_random_seed
@@ -517,20 +232,18 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                     f"policy_kwargs {hp.get('policy_kwargs')} ({exc}); pass the same net_arch "
                     "with --hyperparams") from None
 
-    curriculum = _find_wrapper(venv, "OptimalStartCurriculum")
+    from agents.rl.callbacks import (
+        CriticWarmupCallback,
+        EpisodeInfoCallback,
+        RolloutCheckpointCallback,
+        find_wrapper,
+    )
+    from agents.rl.curriculum import OptimalStartCurriculum
+
+    curriculum = find_wrapper(venv, OptimalStartCurriculum)
     if curriculum is not None:  # continue the annealing schedule where the run stopped
         curriculum.num_timesteps = model.num_timesteps
     remaining = n_timesteps - model.num_timesteps
-    save_freq = run.get("save_freq") or max(n_timesteps // 20, 1)
-    ckpt_cb, info_cb = _make_callbacks(run_dir, save_freq, hp)
-    every = run.get("summary_every")
-    info_cb.summary_every = max(n_timesteps // 20, 1) if every is None else max(int(every), 0)
-    info_cb.total_timesteps = n_timesteps
-
-    def _on_sigterm(signum, frame):  # turn SIGTERM into the Ctrl-C path: checkpoint, then exit
-        raise KeyboardInterrupt
-
-    old_handler = signal.signal(signal.SIGTERM, _on_sigterm)
     t0 = time.perf_counter()
     steps0 = model.num_timesteps
     tfile = run_dir / "timing.yml"
@@ -547,23 +260,18 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         write_text_atomic(tfile, yaml.safe_dump(previous + [session]))
         return previous + [session]
 
-    ckpt_cb.on_save = record_timing
+    ckpt_cb = RolloutCheckpointCallback(run_dir, run.get("save_freq") or max(n_timesteps // 20, 1),
+                                        hp, on_save=record_timing)
+    every = run.get("summary_every")
+    info_cb = EpisodeInfoCallback(
+        n_timesteps, max(n_timesteps // 20, 1) if every is None else max(int(every), 0))
     warmup_steps = int(hp.get("critic_warmup_steps") or 0)
-    if warmup_steps < 0:
-        raise ValueError(f"critic_warmup_steps={warmup_steps}: must be >= 0")
-    extra = [critic_warmup_callback(warmup_steps)] if warmup_steps else []
-    anneal = hp.get("noise_anneal")
-    if anneal:
-        from lunar_env.validation import require_option_keys
+    extra = [CriticWarmupCallback(warmup_steps)] if warmup_steps else []
 
-        require_option_keys("noise_anneal", anneal, ("start_fraction", "final_log_std"))
-        extra.append(noise_anneal_callback(n_timesteps, float(anneal.get("start_fraction", 0.85)),
-                                           float(anneal.get("final_log_std", -5.0))))
-    stop_at = run.get("stop_at_steps")
-    if stop_at is not None:  # a seed-race candidate (agents.rl.race): the full run's schedules,
-        ckpt_cb.stop_at = int(stop_at)  # stopped at the decision step
-        if model.num_timesteps >= int(stop_at):
-            remaining = 0
+    def _on_sigterm(signum, frame):  # turn SIGTERM into the Ctrl-C path: checkpoint, then exit
+        raise KeyboardInterrupt
+
+    old_handler = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         if remaining > 0:
             model.learn(total_timesteps=remaining,
@@ -581,7 +289,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     wall = time.perf_counter() - t0
     # (no learn() call when a run killed after its final checkpoint is resumed: the callback
     # was never attached, and the final checkpoint is already the final state)
-    if getattr(ckpt_cb, "model", None) is not None and ckpt_cb._last_saved != model.num_timesteps:
+    if ckpt_cb.last_saved_steps not in (None, model.num_timesteps):
         ckpt_cb.save_now()  # the newest checkpoint is the final state: --resume can extend it
     vn = model.get_vec_normalize_env()
     if vn is not None:
@@ -595,8 +303,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
           f"Model: {run_dir / 'model.zip'}")
     venv.close()
     sel = hp.get("select_checkpoint")
-    # after the summary line: it reports the run, the selection the chosen checkpoint (a run
-    # stopped before its end, a race candidate, has nothing to choose from yet)
+    # after the summary line: it reports the run, the selection the chosen checkpoint
     if sel and model.num_timesteps >= n_timesteps:
         model = _select_final(model, run_dir, run, hp, dict(sel), algo)
     return model, run_dir
