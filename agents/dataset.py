@@ -15,7 +15,7 @@ import argparse
 import json
 import os
 
-from agents.experts.pinpoint_data import PINPOINT_ACTION_NOISE, PINPOINT_TOLERANCES
+from agents.experts.pinpoint.data import PINPOINT_ACTION_NOISE, PINPOINT_TOLERANCES
 from agents.imitation.dataset import DEFAULT_ENV_ID, DEFAULT_OUT, generate
 
 __all__ = ["main"]

@@ -1,4 +1,4 @@
-"""Per-case optimum of LunarPinpointLanding-v0 (agents.experts.pinpoint_optimum) and its evaluation
+"""Per-case optimum of LunarPinpointLanding-v0 (agents.experts.pinpoint.optimum) and its evaluation
 row."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import agents.experts.pinpoint_optimum as po
+import agents.experts.pinpoint.optimum as po
 from agents.evaluation.compare import _summary, initial_states, rollout
 from optimizers.transcription.batch import PinpointOptimum
 

@@ -7,8 +7,10 @@ import pytest
 
 from agents.common.law import GuidanceLaw
 from agents.experts.family import PerCaseOptimum
-from agents.experts.pinpoint import PinpointFamily, PinpointPontryaginExpert
-from agents.experts.planar import PlanarFamily, PlanarOpenLoopLaw, PlanarReplanningLaw
+from agents.experts.pinpoint.expert import PinpointPontryaginExpert
+from agents.experts.pinpoint.family import PinpointFamily
+from agents.experts.planar.expert import PlanarOpenLoopLaw, PlanarReplanningLaw
+from agents.experts.planar.family import PlanarFamily
 from agents.experts.registry import FAMILIES, family_of
 from lunar_env import get_scenario
 

@@ -1,9 +1,9 @@
-"""The closed-loop re-planning expert (agents.experts.planar.PontryaginExpert)."""
+"""The closed-loop re-planning expert (agents.experts.planar.expert.PontryaginExpert)."""
 
 import numpy as np
 import pytest
 
-from agents.experts.planar import (
+from agents.experts.planar.expert import (
     STATUS_CONSTRAINED,
     STATUS_FALLBACK,
     STATUS_HOLD,
@@ -86,7 +86,7 @@ def test_dataset_recipes_of_both_families():
         rec.rows, planar_sc.sample_initial(np.random.default_rng(4), 3))  # SI rows
     assert rec.tolerances == (1e-3, 1e-3) and len(rec.observation_names) == 5
     assert rec.job_args == {"n_steps": 200, "check": "grid"}
-    assert check_importable(rec.shard_fn).__module__ == "agents.experts.planar_data"
+    assert check_importable(rec.shard_fn).__module__ == "agents.experts.planar.data"
     with pytest.raises(ValueError, match="action_noise = 0.1: defined for the pinpoint env"):
         family_of(planar_sc).dataset_recipe(planar_sc, 3, 4, action_noise=0.1, **opts)
 
@@ -99,7 +99,7 @@ def test_dataset_recipes_of_both_families():
     assert rec.rows.shape == (2, 7) and rec.tolerances == (500.0, 3.0)
     assert len(rec.observation_names) == env.observation_space.shape[0]
     assert rec.job_args == {"action_noise": 0.02} and rec.solver["action_noise"] == 0.02
-    assert check_importable(rec.shard_fn).__module__ == "agents.experts.pinpoint_data"
+    assert check_importable(rec.shard_fn).__module__ == "agents.experts.pinpoint.data"
     for bad in (-0.1, float("nan")):
         with pytest.raises(ValueError, match="action_noise = .* must be finite and >= 0"):
             fam.dataset_recipe(pp_sc, 2, 0, action_noise=bad, **opts)

@@ -226,7 +226,7 @@ def test_dagger_label_parts_resume_from_the_result_store(small_dataset, tmp_path
     """Planar DAgger labels are executor tasks with a ResultStore: a re-run reuses every stored
     part and labels only the missing ones (a kill loses only the tasks in flight), with the
     same labels."""
-    import agents.experts.planar_data as pd
+    import agents.experts.planar.data as pd
     from lunar_env import get_scenario
 
     _, ds = small_dataset

@@ -121,7 +121,7 @@ def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, tmp_path):
 def test_dagger_rollouts_mix_expert_and_policy(pinpoint_dataset, tmp_path):
     """β = 0: every roll-out is the policy's alone; β = 1: every roll-out starts with the
     expert (up to a random switch time), so none counts as policy-only."""
-    import agents.experts.pinpoint_data as lab_mod
+    import agents.experts.pinpoint.data as lab_mod
     import agents.imitation.cli as im
     from agents.imitation.policy import load_learner
 

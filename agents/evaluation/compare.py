@@ -42,7 +42,6 @@ cases) in the output directory.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +51,7 @@ from agents.common.law import GuidanceLaw, law_label
 from agents.common.rollout import fly, make_vec
 from agents.common.sb3_law import SB3Law
 from agents.evaluation.report import markdown_table, write_report
+from agents.evaluation.result import PolicyResult
 from agents.experts.registry import family_of
 
 __all__ = ["PolicyResult", "initial_states", "rollout", "compare", "evaluate_run",
@@ -74,26 +74,6 @@ def initial_states(env_id: str, n: int, seed: int, env_kwargs: dict[str, Any] | 
 
 
 # ----------------------------------------------------------------------------- rollout
-
-
-@dataclass
-class PolicyResult:
-    """Per-case outcome of one policy (arrays of length n_cases)."""
-
-    name: str
-    case_ids: np.ndarray
-    is_success: np.ndarray
-    touchdown_speed_m_s: np.ndarray
-    miss_distance_m: np.ndarray
-    fuel_used_kg: np.ndarray
-    episode_time_s: np.ndarray
-    n_decisions: int
-    policy_wall_s: float
-    traces: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
-
-    @property
-    def us_per_decision(self) -> float:
-        return 1e6 * self.policy_wall_s / max(self.n_decisions, 1)
 
 
 def rollout(env_id: str, law: GuidanceLaw, n: int, seed: int,

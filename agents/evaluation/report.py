@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from agents.evaluation.compare import PolicyResult
+    from agents.evaluation.result import PolicyResult
 
 
 def _fmt(x: float, spec: str) -> str:

@@ -4,7 +4,7 @@ Flies reference strategies from the nominal start of a ``LunarPinpointLanding`` 
 their returns (undiscounted and discounted), gate speed, miss distance, fuel and the env's
 success verdict:
 
-- the Pontryagin feedback law (:class:`agents.experts.pinpoint.PinpointPontryaginExpert`: the
+- the Pontryagin feedback law (:class:`agents.experts.pinpoint.expert.PinpointPontryaginExpert`: the
 extremal
   re-solved from every state, the optimum in closed loop);
 - [001]'s optimum (GPM + direct shooting) replayed open loop, its law averaged over each step;
@@ -73,7 +73,8 @@ def rank_strategies(env_id: str = "LunarPinpointLanding-v2", *, n_random: int = 
 
     import lunar_env  # noqa: F401
     from agents.common.law import FlightComputer
-    from agents.experts.pinpoint import PinpointFamily, PinpointPontryaginExpert
+    from agents.experts.pinpoint.expert import PinpointPontryaginExpert
+    from agents.experts.pinpoint.family import PinpointFamily
     from agents.experts.registry import family_of
     from agents.rl.shaping import resolve_success_bonus
     from lunar_env.envs.pinpoint_landing import action_from_angles, angles_from_action

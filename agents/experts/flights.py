@@ -1,6 +1,6 @@
 """Helpers the families' dataset and DAgger work shares: the unwrapped env of an id, and the
-concatenation of a shard's certified samples (:mod:`agents.experts.planar_data`,
-:mod:`agents.experts.pinpoint_data`).
+concatenation of a shard's certified samples (:mod:`agents.experts.planar.data`,
+:mod:`agents.experts.pinpoint.data`).
 """
 
 from __future__ import annotations

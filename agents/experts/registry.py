@@ -10,8 +10,8 @@ __all__ = ["family_of", "FAMILIES"]
 def _families() -> tuple[EnvFamily, ...]:
     # imported here, not at the top: each family module pulls in its optimisers (numba, CasADi),
     # and a caller asking for one family should not pay for the other's import
-    from agents.experts.pinpoint import PinpointFamily
-    from agents.experts.planar import PlanarFamily
+    from agents.experts.pinpoint.family import PinpointFamily
+    from agents.experts.planar.family import PlanarFamily
 
     return (PlanarFamily(), PinpointFamily())
 

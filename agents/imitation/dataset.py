@@ -9,7 +9,7 @@ own spaces, each from a certified minimum-fuel trajectory.
 
 What the trajectories are, how they are labelled and certified is the env family's
 (:meth:`agents.experts.family.EnvFamily.dataset_recipe`; soft landing:
-:mod:`agents.experts.planar_data`, pinpoint: :mod:`agents.experts.pinpoint_data`); this module
+:mod:`agents.experts.planar.data`, pinpoint: :mod:`agents.experts.pinpoint.data`); this module
 is the generic driver (shards, executor, resume, merge). Soft landing:
 
 Pipeline
@@ -39,7 +39,7 @@ Pipeline
    below ``tol_speed_m_s`` / ``tol_radius_m`` and the env replay a success.
 
 Pinpoint (``--env LunarPinpointLanding-v*``): the samples come from the Pontryagin feedback
-expert's own noisy closed-loop flights (:func:`agents.experts.pinpoint_data.
+expert's own noisy closed-loop flights (:func:`agents.experts.pinpoint.data.
 pinpoint_expert_flights`; ``--noise``).
 
 Parallel, progress, resume: the rows are split into shards of ``shard_size``; shards are tasks
@@ -124,14 +124,14 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     tol_radius_m, tol_speed_m_s : float, optional
         Certification tolerances. Soft landing: on the solver's terminal errors (default
         1e-3 m, 1e-3 m/s). Pinpoint: on the gate miss and gate speed of the expert's own flight
-        (default :data:`agents.experts.pinpoint_data.PINPOINT_TOLERANCES`), on top of the
+        (default :data:`agents.experts.pinpoint.data.PINPOINT_TOLERANCES`), on top of the
         env's success verdict. (The family's :meth:`~agents.experts.family.EnvFamily.
         dataset_recipe` sets the defaults.)
     max_shards : int, optional
         Stop after this many new shards (simulates an interruption; returns None).
     action_noise : float, optional
         Pinpoint only: standard deviation of the Gaussian noise on the expert's flown actions
-        (default :data:`agents.experts.pinpoint_data.PINPOINT_ACTION_NOISE`; 0 gives the
+        (default :data:`agents.experts.pinpoint.data.PINPOINT_ACTION_NOISE`; 0 gives the
         optimal trajectories themselves).
     executor : optimizers.common.executor.Executor, optional
         Runs the shards (e.g. a Ray cluster: ``--address``); overrides ``n_workers``. The

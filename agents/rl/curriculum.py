@@ -17,7 +17,7 @@ Montezuma's Revenge from a single demonstration"). The policy is never shown an 
 only states to start from.
 
 Soft landing: Pontryagin optima. Pinpoint landing: the env's per-case optimum of
-:mod:`agents.experts.pinpoint_optimum` (serial GPM + direct shooting, cached), its shooting nodes
+:mod:`agents.experts.pinpoint.optimum` (serial GPM + direct shooting, cached), its shooting nodes
 as the
 pool.
 """

@@ -1,7 +1,7 @@
 """The planar family's imitation data: dataset shards sampled from certified optimal
 trajectories, and DAgger labels of the policy's roll-outs by :class:`~agents.experts.planar.
-PontryaginExpert` (what :meth:`agents.experts.planar.PlanarFamily.dataset_recipe` and
-:meth:`~agents.experts.planar.PlanarFamily.dagger_iteration` answer).
+PontryaginExpert` (what :meth:`agents.experts.planar.family.PlanarFamily.dataset_recipe` and
+:meth:`~agents.experts.planar.family.PlanarFamily.dagger_iteration` answer).
 
 Dataset (see :mod:`agents.imitation.dataset` for the pipeline and the file format): initial
 states ``scenario.sample_initial(rng, n)`` (SI rows), solved by
@@ -23,7 +23,7 @@ from agents.common.law import ActionSequenceLaw, CallableLaw
 from agents.common.rollout import fly
 from agents.experts.family import DaggerRequest, DatasetRecipe
 from agents.experts.flights import collect_samples, make_env
-from agents.experts.planar import PontryaginExpert, planar_state_si
+from agents.experts.planar.expert import PontryaginExpert, planar_state_si
 from lunar_env import get_scenario
 from lunar_env.envs.soft_landing import action_from_thrust_angle
 from lunar_env.scenarios import PlanarScenario
@@ -191,7 +191,7 @@ def label_chunk(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
     """Label the chosen steps of some episodes with the closed-loop expert (an executor task).
 
     The expert plans from the episodes' recorded *true* states: a privileged teacher, as the
-    pinpoint roll-outs' :class:`agents.experts.pinpoint_data.DaggerRolloutTeacher`."""
+    pinpoint roll-outs' :class:`agents.experts.pinpoint.data.DaggerRolloutTeacher`."""
     sc = get_scenario(job["scenario"])
     dt_s = float(job["dt_s"])
     res = []

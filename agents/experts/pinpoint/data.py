@@ -1,7 +1,7 @@
 """The pinpoint family's imitation data: dataset shards from the Pontryagin feedback expert's
 own (noisy) flights, and DAgger roll-outs labelled in flight by the same expert (what
-:meth:`agents.experts.pinpoint.PinpointFamily.dataset_recipe` and
-:meth:`~agents.experts.pinpoint.PinpointFamily.dagger_iteration` answer).
+:meth:`agents.experts.pinpoint.family.PinpointFamily.dataset_recipe` and
+:meth:`~agents.experts.pinpoint.family.PinpointFamily.dagger_iteration` answer).
 
 No open-loop solution can be sampled on the pinpoint env (the optimum held over 1 s env steps
 misses the gate by ~10 m/s, and a clone of the optimal trajectories alone drifts off them), so
@@ -27,7 +27,7 @@ from agents.common.law import Navigation, PrivilegedLaw, Truth
 from agents.common.rollout import fly
 from agents.experts.family import DaggerRequest, DatasetRecipe
 from agents.experts.flights import collect_samples, make_env
-from agents.experts.pinpoint import PinpointPontryaginExpert
+from agents.experts.pinpoint.expert import PinpointPontryaginExpert
 from lunar_env import get_scenario
 
 __all__ = ["PINPOINT_LABEL_RULE", "PINPOINT_TOLERANCES", "PINPOINT_ACTION_NOISE",
@@ -112,7 +112,7 @@ def pinpoint_expert_flights(rows_nd: np.ndarray, env_id: str,
     """Fly the Pontryagin feedback expert from each normalised initial state (n, 7) and label
     every visited state with its clean action (DART: Laskey et al. 2017).
 
-    The expert (:class:`agents.experts.pinpoint.PinpointPontryaginExpert`) re-solves the
+    The expert (:class:`agents.experts.pinpoint.expert.PinpointPontryaginExpert`) re-solves the
     minimum-fuel extremal from the lander's state at every decision; the env is flown with its
     action plus Gaussian noise of standard deviation ``action_noise`` (action units; 0.02 ≈
     0.9°), so the visited states spread around the optimal trajectory the way a learner's do,
@@ -214,7 +214,7 @@ def pinpoint_dataset_recipe(scenario, n: int, seed: int, *, n_steps: int, check:
         rows=rows, observation_names=list(OBSERVATION_NAMES), label_rule=PINPOINT_LABEL_RULE,
         initial_states="scenario.sample_initial(rng, n) -> scenario.state_nd "
                        "(initial_state_si: Moon-fixed SI)",
-        solver={"name": "agents.experts.pinpoint.PinpointPontryaginExpert (the minimum-fuel "
+        solver={"name": "agents.experts.pinpoint.expert.PinpointPontryaginExpert (the minimum-fuel "
                         "extremal from every visited state, optimizers.indirect."
                         "pinpoint_feedback)", "action_noise": noise},
         certification={"tol_radius_m": tol_r, "tol_speed_m_s": tol_v,
@@ -295,7 +295,7 @@ def pinpoint_dagger_rollouts(model_path, load_learner, env_id: str,
     ``model_path`` (loaded in each task by the module-level ``load_learner``, see
     :class:`agents.experts.family.DaggerRequest`) from ``n_episodes`` dispersed starts
     (sub-env i seeded ``seed + i``), every visited state labelled by the Pontryagin feedback
-    expert (:class:`agents.experts.pinpoint.PinpointPontryaginExpert`, the extremal from that
+    expert (:class:`agents.experts.pinpoint.expert.PinpointPontryaginExpert`, the extremal from that
     state).
 
     Mixing (Ross et al. 2011's β): with probability ``beta`` an episode is flown by the expert

@@ -1,11 +1,9 @@
-"""The planar soft-landing family (``LunarSoftLanding-v0``): its expert, laws and optimum.
+"""The planar soft-landing expert and laws (``LunarSoftLanding-v0``).
 
 - :class:`PontryaginExpert` re-solves the minimum-fuel problem by Pontryagin shooting from the
   current state (the DAgger oracle);
 - :class:`PlanarReplanningLaw` flies it as a guidance law, on the navigation solution;
-- :class:`PlanarOpenLoopLaw` replays each case's optimal thrust-angle history;
-- :class:`PlanarFamily` answers the family's questions (:mod:`agents.experts.family`): the
-  per-case optimum (Pontryagin batch), the laws above, curriculum starts, plots.
+- :class:`PlanarOpenLoopLaw` replays each case's optimal thrust-angle history.
 """
 
 from __future__ import annotations
@@ -16,12 +14,10 @@ import time
 import numpy as np
 
 from agents.common.law import GuidanceLaw, Navigation
-from agents.experts.family import DaggerRequest, DatasetRecipe, EnvFamily, PerCaseOptimum
 from lunar_env import dynamics as dyn
-from lunar_env.envs.soft_landing import action_from_thrust_angle, thrust_angle_from_action
+from lunar_env.envs.soft_landing import action_from_thrust_angle
 from lunar_env.scenarios import PlanarScenario
 from lunar_env.states import planar_nd_to_si
-from optimizers.indirect.batch import solve_many
 from optimizers.indirect.planar import (
     PontryaginGuess,
     PontryaginSolution,
@@ -31,7 +27,7 @@ from optimizers.indirect.planar import (
 from optimizers.indirect.planar_system import optimal_thrust_angle
 from optimizers.transcription.collocation import solve_planar_min_time_collocation
 
-__all__ = ["PontryaginExpert", "PlanarReplanningLaw", "PlanarOpenLoopLaw", "PlanarFamily",
+__all__ = ["PontryaginExpert", "PlanarReplanningLaw", "PlanarOpenLoopLaw",
            "planar_state_si", "STATUS_OPTIMAL", "STATUS_HOLD", "STATUS_FALLBACK",
            "STATUS_CONSTRAINED"]
 
@@ -276,84 +272,3 @@ class PlanarReplanningLaw(GuidanceLaw):
         for k in np.flatnonzero(nav.active):
             phi[k] = float(self.experts[k](si[k], t_s=float(nav.t_s[k])))
         return _actions(phi)
-
-
-class PlanarFamily(EnvFamily):
-    """The planar soft-landing family (:class:`~lunar_env.scenarios.PlanarScenario`)."""
-
-    name = "planar"
-    #: the re-planning expert costs a Pontryagin solve per decision (~5 ms): 20 cases by default
-    default_expert_cases = 20
-    plot_labels = ("downrange (km)", "altitude (km)", "thrust angle φ (deg)")
-
-    def handles(self, scenario) -> bool:
-        return isinstance(scenario, PlanarScenario)
-
-    def per_case_optimum(self, scenario, states_nd: np.ndarray, *, progress: bool = True,
-                         workers: int = 1, executor=None) -> PerCaseOptimum:
-        """Pontryagin indirect shooting from each state (:func:`optimizers.indirect.batch.
-        solve_many`, warm-started along the cases; ``executor`` solves chunks in parallel)."""
-        if progress:
-            print(f"Solving {len(states_nd)} per-case optimal controls (Pontryagin)...",
-                  flush=True)
-        t0 = time.perf_counter()
-        sols = solve_many(scenario, planar_state_si(scenario, states_nd), progress=progress,
-                          executor=executor)
-        return PerCaseOptimum.from_solutions(list(sols), "optimizers.indirect.batch.solve_many",
-                                             time.perf_counter() - t0)
-
-    def open_loop_law(self, optimum: PerCaseOptimum) -> GuidanceLaw:
-        return PlanarOpenLoopLaw(optimum.solutions)
-
-    def expert_law(self, scenario) -> GuidanceLaw:
-        return PlanarReplanningLaw(scenario)
-
-    def start_pool(self, scenario, n_trajectories: int, seed: int, n_points: int = 101,
-                   progress: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """States at ``n_points`` equal times along the Pontryagin optimum of each dispersed
-        start (touchdown excluded), shape (n_ok, n_points, 5), and their times (s)."""
-        rows = scenario.sample_initial(np.random.default_rng(seed), int(n_trajectories))
-        sols = [s for s in solve_many(scenario, rows, progress=progress) if s.success]
-        if not sols:
-            raise RuntimeError("no optimal trajectory converged; cannot build the curriculum")
-        states, times = [], []
-        for sol in sols:
-            t = np.linspace(0.0, sol.tf_s, n_points + 1)[:-1]
-            states.append(sol.state_costate_at(t)[:, :5])
-            times.append(t)
-        return np.asarray(states), np.asarray(times)
-
-    def dataset_recipe(self, scenario, n: int, seed: int, *, n_steps: int, check: str,
-                       tol_radius_m: float | None, tol_speed_m_s: float | None,
-                       action_noise: float | None) -> DatasetRecipe:
-        """See :func:`agents.experts.planar_data.planar_dataset_recipe`."""
-        from agents.experts.planar_data import planar_dataset_recipe
-
-        return planar_dataset_recipe(scenario, n, seed, n_steps=n_steps, check=check,
-                                     tol_radius_m=tol_radius_m, tol_speed_m_s=tol_speed_m_s,
-                                     action_noise=action_noise)
-
-    def dagger_iteration(self, scenario, request: DaggerRequest
-                         ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
-        """See :func:`agents.experts.planar_data.planar_dagger_iteration`."""
-        from agents.experts.planar_data import planar_dagger_iteration
-
-        return planar_dagger_iteration(scenario, request)
-
-    def plot_optimum(self, ax_trajectory, ax_control, solution, scenario) -> None:
-        r_surf = scenario.surface_radius_m
-        tr = solution.sample(n=301)
-        st = tr.states
-        ax_trajectory.plot(st["theta_rad"] * r_surf / 1e3, (st["radius_m"] - r_surf) / 1e3,
-                           "k--", lw=2, label="optimum")
-        ax_control.plot(tr.t_s, np.degrees(tr.controls["phi_rad"]), "k--", lw=2,
-                        label="optimum")
-
-    def plot_flight(self, ax_trajectory, ax_control, trace, scenario, label: str) -> None:
-        r_surf = scenario.surface_radius_m
-        y = trace["state_nd"]
-        ax_trajectory.plot(y[:, 2] * r_surf / 1e3,
-                           (y[:, 0] * scenario.scaling().length_m - r_surf) / 1e3, label=label)
-        if len(trace["action"]):
-            phi = thrust_angle_from_action(trace["action"][:, 0])
-            ax_control.step(trace["t_s"][:len(phi)], np.degrees(phi), where="post", label=label)
