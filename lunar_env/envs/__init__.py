@@ -7,11 +7,16 @@
 
 Both have a native vector env (``gym.make_vec(id, num_envs=N,
 vectorization_mode="vector_entry_point")``).
+
+Public API for code built on the envs (agents, adapters, benchmarks): the env bases
+:class:`LanderEnv` and :class:`LanderVectorEnv` and :func:`validate_actions`.
 """
 
 from gymnasium.envs.registration import register, registry
 
-__all__ = ["register_envs"]
+from .base import LanderEnv, LanderVectorEnv, validate_actions
+
+__all__ = ["register_envs", "LanderEnv", "LanderVectorEnv", "validate_actions"]
 
 _ENVS = {
     "LunarSoftLanding-v0": ("soft_landing", "LunarSoftLandingEnv", "LunarSoftLandingVectorEnv",

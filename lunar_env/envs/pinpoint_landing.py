@@ -15,8 +15,8 @@ import numpy as np
 from .. import dynamics as dyn
 from .. import integrators as integ
 from ..scenarios import PinpointScenario, get_scenario
-from ._base import LanderEnv, LanderVectorEnv, box
-from ._core import init_task
+from .base import LanderEnv, LanderVectorEnv, box
+from .core import init_task
 
 __all__ = ["LunarPinpointLandingEnv", "LunarPinpointLandingVectorEnv", "angles_from_action",
            "action_from_angles"]

@@ -14,8 +14,8 @@ import numpy as np
 
 from .. import integrators as integ
 from ..scenarios import PlanarScenario, get_scenario
-from ._base import LanderEnv, LanderVectorEnv, box
-from ._core import init_task
+from .base import LanderEnv, LanderVectorEnv, box
+from .core import init_task
 
 __all__ = ["LunarSoftLandingEnv", "LunarSoftLandingVectorEnv", "thrust_angle_from_action",
            "action_from_thrust_angle", "MAX_THRUST_ANGLE_RAD"]

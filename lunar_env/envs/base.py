@@ -3,7 +3,7 @@
 A *task* (``_PlanarTask``, ``_PinpointTask``) owns everything scenario-specific: spaces, the
 action-to-control map, observations, landing metrics and initial states. :class:`LanderEnv` and
 :class:`LanderVectorEnv` own the Gymnasium protocol; both step through
-:class:`~lunar_env.envs._core.LanderBatch`, so a vector env and N single envs do the same
+:class:`~lunar_env.envs.core.LanderBatch`, so a vector env and N single envs do the same
 arithmetic.
 """
 
@@ -20,7 +20,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import integrators as integ
-from ._core import LanderBatch
+from .core import LanderBatch
 
 __all__ = ["LanderEnv", "LanderVectorEnv", "validate_actions", "check_reset_options",
            "RESET_OPTION_KEYS"]
@@ -315,7 +315,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
     ``state_nd`` may also be an array (N, n_state)).
 
     ``parallel``: use numba's parallel kernel (default: only from
-    :data:`~lunar_env.envs._core.PARALLEL_MIN_BATCH` landers; an env step is so little work per
+    :data:`~lunar_env.envs.core.PARALLEL_MIN_BATCH` landers; an env step is so little work per
     lander that thread start-up dominates below that). Results are identical either way.
     """
 
