@@ -13,7 +13,11 @@ An env step (:meth:`LanderBatch.step`):
    crosses the landing radius (touchdown), at most ``max_fall_s`` (then it is truncated: a
    ballistic arc that does not come down). The episode therefore always ends in the step in which
    the engine stops.
-3. **Bookkeeping**: fuel reward, terminal landing-quality term, truncation at the time limit.
+3. **Bookkeeping**: fuel reward, terminal landing-quality term, truncation at the time limit,
+   and the per-lander quantities every ``info`` reports (:meth:`LanderBatch.info_arrays`).
+
+This is the only place where any of this is computed: the single env is a batch of one, and it,
+the native vector env and ``step_landers`` only present the same arrays in their own formats.
 
 A speed minimum that happens *exactly at a step boundary* because the new action starts to
 accelerate the lander is not a cut-off: the cut-off logic watches the speed under a held command
@@ -28,9 +32,9 @@ import numba
 import numpy as np
 
 from .. import integrators as integ
-from ..validation import require_bool, require_finite_positive, require_integer
 
-__all__ = ["LanderBatch", "landing_penalty", "SPEED_SCALE_M_S", "MISS_SCALE_M"]
+__all__ = ["LanderBatch", "landing_penalty", "SPEED_SCALE_M_S", "MISS_SCALE_M",
+           "INFO_KEYS"]
 
 #: Scales of the terminal landing-quality term (see :func:`landing_penalty`).
 SPEED_SCALE_M_S = 1.0
@@ -41,6 +45,10 @@ MISS_SCALE_M = 100.0
 #: thousand landers (measured on a loaded 2-core machine: serial 7 ms vs parallel 58 ms at 4096).
 PARALLEL_MIN_BATCH = 16384
 _MAX_RESUMES = 8
+
+#: Keys of :meth:`LanderBatch.info_arrays`, in the order the infos list them.
+INFO_KEYS = ("fuel_used_kg", "is_success", "altitude_m", "time_s", "touchdown_speed_m_s",
+             "miss_distance_m")
 
 
 def landing_penalty(speed_m_s, miss_m=None):
@@ -64,11 +72,13 @@ class LanderBatch:
 
     Parameters
     ----------
-    task : object
-        A task (``_PlanarTask`` or ``_PinpointTask``) supplying the model, the control mapping and
-        the landing geometry.
+    task : LandingTask
+        The task (:class:`~lunar_env.envs.task.LandingTask`) supplying the model, the control
+        mapping and the landing geometry.
     n : int
-        Batch size.
+        Batch size (1 for the single env).
+    parallel : bool or None
+        Use numba's parallel kernel (None: from :data:`PARALLEL_MIN_BATCH` landers).
     """
 
     def __init__(self, task, n: int, parallel: bool | None = None) -> None:
@@ -79,11 +89,14 @@ class LanderBatch:
         self.y = np.zeros((self.n, nx))
         self.t_nd = np.zeros(self.n)
         self.m_start_nd = np.ones(self.n)
-        # pre-allocated kernel inputs for the whole batch (the common case)
+        # pre-allocated kernel inputs for the whole batch (the common case; for one lander the
+        # allocations would cost as much as the integration)
         self._breaks = np.zeros((self.n, 2))
         self._coefs = np.zeros((self.n, 1, nu, 1))
         self._h = np.full(self.n, task.h_nd)
         self._r_stop = np.full(self.n, task.r_stop_nd)
+        self._nan = np.full(self.n, np.nan)
+        self._t_limit_s = task.time_limit_s - 1e-9 * task.dt_s
         self._parallel = (self.n >= PARALLEL_MIN_BATCH if parallel is None else bool(parallel)) \
             and numba.config.NUMBA_NUM_THREADS > 1
 
@@ -94,29 +107,39 @@ class LanderBatch:
         self.t_nd[i] = 0.0
         self.m_start_nd[i] = self.y[i, -1] if np.ndim(i) == 0 else self.y[i][:, -1]
 
-    # -- physics --------------------------------------------------------------------------------
-    def update_stop_radius(self) -> None:
-        """Per-lander terminal radius for the coming step (tasks whose gate depends on where the
-        lander is, e.g. the pinpoint v2 gate that counts only near the target)."""
-        fn = getattr(self.task, "stop_radius", None)
-        if fn is not None:
-            self._r_stop[:] = fn(self.y)
+    def observations(self) -> np.ndarray:
+        """Observations (n, n_obs) float32 of every lander now."""
+        return self.task.observation(self.y, self.t_nd * self.task.time_ref_s)
 
-    def _powered(self, idx, controls):
+    def info_arrays(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray
+                    ) -> dict[str, np.ndarray]:
+        """What every ``info`` reports, per lander (n,), keys :data:`INFO_KEYS`.
+
+        ``fuel_used_kg`` since the episode's start (kg), ``is_success``, ``altitude_m`` (m),
+        ``time_s`` (s), ``touchdown_speed_m_s`` (m/s) and ``miss_distance_m`` (m) (``speed``,
+        ``miss``: NaN where undefined, as :meth:`step` returns them).
+        """
         task = self.task
+        return {"fuel_used_kg": (self.m_start_nd - self.y[:, -1]) * task.mass_ref_kg,
+                "is_success": success, "altitude_m": task.altitude_m(self.y),
+                "time_s": self.t_nd * task.time_ref_s, "touchdown_speed_m_s": speed,
+                "miss_distance_m": miss}
+
+    # -- physics --------------------------------------------------------------------------------
+    def _powered(self, idx, y0: np.ndarray, t0: np.ndarray, controls: np.ndarray):
+        task = self.task
+        varies = task.gate_range_m is not None
         if idx is None:
-            y0, t0 = self.y, self.t_nd
-            self.update_stop_radius()
             breaks, coefs, h, rs = self._breaks, self._coefs, self._h, self._r_stop
+            if varies:
+                rs[:] = task.stop_radius(y0)
             parallel = self._parallel
         else:
-            y0, t0 = self.y[idx], self.t_nd[idx]
             k = len(y0)
             breaks = np.empty((k, 2))
             coefs = np.empty((k, 1, controls.shape[1], 1))
-            h = np.full(k, task.h_nd)
-            fn = getattr(task, "stop_radius", None)
-            rs = fn(y0) if fn is not None else np.full(k, task.r_stop_nd)
+            h = self._h[:k]
+            rs = task.stop_radius(y0) if varies else self._r_stop[:k]
             parallel = self._parallel and k >= integ._PARALLEL_MIN_BATCH
         breaks[:, 0] = t0
         breaks[:, 1] = t0 + task.dt_nd
@@ -149,21 +172,35 @@ class LanderBatch:
             events=(integ.RadiusCrossing(task.r_stop_nd),),
             parallel=self._parallel and k >= integ._PARALLEL_MIN_BATCH)
 
-    def step(self, controls: np.ndarray, idx: np.ndarray | None = None,
-             powered: tuple | None = None) -> dict:
+    def step(self, controls: np.ndarray, idx: np.ndarray | None = None) -> dict:
         """Advance landers ``idx`` (all if None) by one env step under ``controls`` (k, nu).
 
-        ``controls`` must already be validated and mapped to radians/throttle; ``powered`` is the
-        result of :meth:`_powered` when a caller's fast path already computed it. Returns a dict of
-        arrays of length k: ``reward``, ``terminated`` (touchdown), ``truncated``,
-        ``touchdown_speed_m_s`` (NaN if no touchdown), ``miss_distance_m`` (NaN unless a pinpoint
-        episode ended), ``is_success``.
+        ``controls`` must already be validated and mapped to radians/throttle
+        (``task.controls_from_actions``). Returns a dict of arrays of length k: ``reward``,
+        ``terminated`` (touchdown), ``truncated``, ``touchdown_speed_m_s`` (m/s; NaN if no
+        touchdown), ``miss_distance_m`` (m; NaN unless a pinpoint episode ended),
+        ``is_success``.
         """
         task = self.task
-        m_before = self.y[:, -1] if idx is None else self.y[idx, -1]
-        t_step_end = (self.t_nd if idx is None else self.t_nd[idx]) + task.dt_nd
-        y_end, t_end, status, t_burn = powered if powered is not None else \
-            self._powered(idx, controls)
+        if idx is None:
+            y0, t0 = self.y, self.t_nd
+        else:
+            y0, t0 = self.y[idx], self.t_nd[idx]
+        y_end, t_end, status, t_burn = self._powered(idx, y0, t0, controls)
+        t_s = t_end * task.time_ref_s
+        if not (np.count_nonzero(status) or np.count_nonzero(t_burn == t_burn)
+                or np.count_nonzero(t_s >= self._t_limit_s)):
+            # no event, engine on, time left (every step of an episode but its last): the fuel
+            # term is the whole outcome; counts, not reductions, keep this cheap for one lander
+            reward = (y0[:, -1] - y_end[:, -1]) * task.mass_ref_kg / -task.propellant_ref_kg
+            self._store(idx, y_end, t_end)
+            k = len(y_end)
+            nan = self._nan[:k]
+            return {"reward": reward, "terminated": np.zeros(k, dtype=bool),
+                    "truncated": np.zeros(k, dtype=bool), "touchdown_speed_m_s": nan.copy(),
+                    "miss_distance_m": nan.copy(), "is_success": np.zeros(k, dtype=bool)}
+        m_before = y0[:, -1]
+        t_step_end = t0 + task.dt_nd
         burnt = ~np.isnan(t_burn)
         # A speed minimum above the cut-off speed is not an engine cut-off (the cut-off logic is
         # armed only in the terminal phase): keep burning to the end of the step.
@@ -180,11 +217,10 @@ class LanderBatch:
                     y_end[j], t_end[j], t_step_end[j], controls[j])
                 burnt[j] |= not np.isnan(tb)
         touchdown = status == integ.STATUS_RADIUS
-        below = getattr(task, "below_gate_in_zone", None)
-        if below is not None:
+        if task.gate_range_m is not None:
             # pinpoint v2: a lander that enters the target zone under the gate (it flew below
             # 2 km elsewhere) ends there, scored at its current speed and position
-            touchdown |= below(y_end) & ~burnt
+            touchdown |= task.below_gate_in_zone(y_end) & ~burnt
         engine_off = (status == integ.STATUS_SPEED_MIN) | (burnt & ~touchdown)
         lost = np.zeros_like(touchdown)
         if engine_off.any():
@@ -195,16 +231,10 @@ class LanderBatch:
             landed = fall.status == integ.STATUS_RADIUS
             touchdown[j] = landed
             lost[j] = ~landed
-        if idx is None:
-            self.y = y_end
-            self.t_nd = t_end
-        else:
-            self.y[idx] = y_end
-            self.t_nd[idx] = t_end
-        fuel_kg = (m_before - y_end[:, -1]) * task.mass_ref_kg
-        reward = -fuel_kg / task.propellant_ref_kg
+        self._store(idx, y_end, t_end)
+        reward = (m_before - y_end[:, -1]) * task.mass_ref_kg / -task.propellant_ref_kg
         t_s = t_end * task.time_ref_s
-        truncated = ~touchdown & (lost | (t_s >= task.time_limit_s - 1e-9 * task.dt_s))
+        truncated = ~touchdown & (lost | (t_s >= self._t_limit_s))
         ended = touchdown | truncated
         speed = np.full(len(y_end), np.nan)
         miss = np.full(len(y_end), np.nan)
@@ -221,7 +251,7 @@ class LanderBatch:
             if ms is not None:
                 ok &= ms <= task.success_miss_m
             success[e] = ok
-            if getattr(task, "charge_propellant_on_failure", False) and not ok.all():
+            if task.charge_propellant_on_failure and not ok.all():
                 # pinpoint v1: a failed landing loses the propellant left with the vehicle
                 f = e[~ok]
                 reward[f] -= (y_end[f, -1] - task.dry_mass_nd) * task.mass_ref_kg \
@@ -229,48 +259,10 @@ class LanderBatch:
         return {"reward": reward, "terminated": touchdown, "truncated": truncated,
                 "touchdown_speed_m_s": speed, "miss_distance_m": miss, "is_success": success}
 
-
-def init_task(task, sc, *, dt_s: float, substeps: int, time_limit_s: float | None,
-              max_fall_s: float | None, throttle_channel: bool, success_speed_m_s: float,
-              cutoff_speed_m_s: float, **positive: float) -> None:
-    """Validate and set what both landing tasks share (timing, tolerances, scaled constants).
-
-    ``positive`` names further settings that must be finite and > 0 (e.g. ``success_miss_m``).
-    ``substeps`` must be an integer >= 1 (1.7 is refused, not truncated), ``throttle_channel`` a
-    bool (the string ``"no"`` is refused, not read as True), ``time_limit_s`` and
-    ``max_fall_s`` finite and > 0 when given. Raises ValueError (or
-    :class:`~lunar_env.validation.InvalidTypeError`) naming the setting and its value.
-    """
-    checks = dict(dt_s=dt_s, success_speed_m_s=success_speed_m_s,
-                  cutoff_speed_m_s=cutoff_speed_m_s, **positive)
-    vals = {name: require_finite_positive(name, v) for name, v in checks.items()}
-    substeps = require_integer("substeps", substeps, minimum=1)
-    throttle_channel = require_bool("throttle_channel", throttle_channel)
-    if time_limit_s is not None:
-        time_limit_s = require_finite_positive("time_limit_s", time_limit_s)
-    if max_fall_s is not None:
-        max_fall_s = require_finite_positive("max_fall_s", max_fall_s)
-    dt_s = vals["dt_s"]
-    task.scenario = sc
-    task.scaling = s = sc.scaling()
-    task.params = sc.params(s)
-    task.params_array = task.params.as_array()
-    task.dt_s = dt_s
-    task.substeps = substeps
-    task.dt_nd = float(s.time_nd(task.dt_s))
-    task.h_nd = task.dt_nd / task.substeps
-    task.time_limit_s = float(time_limit_s if time_limit_s is not None
-                              else 1.5 * sc.tf_bounds_s[1])
-    if not task.time_limit_s >= task.dt_s:
-        raise ValueError(f"time_limit_s = {task.time_limit_s!r} must be >= dt_s = {dt_s!r}")
-    task.max_fall_s = float(max_fall_s if max_fall_s is not None else task.time_limit_s)
-    task.n_fall = fall_steps(task.max_fall_s, task.dt_s / task.substeps)
-    task.throttle_channel = throttle_channel
-    task.success_speed_m_s = float(success_speed_m_s)
-    task.cutoff_speed_m_s = float(cutoff_speed_m_s)
-    task.dry_mass_nd = float(s.mass_nd(sc.vehicle.dry_mass_kg))
-
-
-def fall_steps(max_fall_s: float, h_s: float) -> int:
-    """Number of RK4 steps of length ``h_s`` covering ``max_fall_s``."""
-    return max(1, int(math.ceil(max_fall_s / h_s - 1e-9)))
+    def _store(self, idx, y_end: np.ndarray, t_end: np.ndarray) -> None:
+        if idx is None:
+            self.y = y_end
+            self.t_nd = t_end
+        else:
+            self.y[idx] = y_end
+            self.t_nd[idx] = t_end
