@@ -67,6 +67,45 @@ def landing_penalty(speed_m_s, miss_m=None):
     return out
 
 
+@numba.njit(cache=True)
+def _prepare(t0, dt_nd, controls, breaks, coefs):  # pragma: no cover  (compiled)
+    """Fill the kernel's control layout: the action held over [t0, t0 + dt_nd] (as
+    ``PiecewisePolynomial.constant`` lays it out). One compiled loop instead of four NumPy
+    assignments, whose overhead would dominate a step of one lander."""
+    for i in range(t0.shape[0]):
+        breaks[i, 0] = t0[i]
+        breaks[i, 1] = t0[i] + dt_nd
+        for j in range(controls.shape[1]):
+            coefs[i, 0, j, 0] = controls[i, j]
+
+
+@numba.njit(cache=True)
+def _fuel_and_clock(y0, y_end, t_end, status, t_burn, mass_ref_kg, propellant_ref_kg,
+                    time_ref_s, t_limit_s, reward, late):  # pragma: no cover  (compiled)
+    """The step's fuel reward (propellant burnt / capacity, negative) into ``reward`` and the
+    time-limit test (``t >= t_limit_s``, s) into ``late``, per lander; returns how many landers
+    need the terminal logic (an integrator event, a burnout or the time limit)."""
+    last = y_end.shape[1] - 1
+    n_busy = 0
+    for i in range(y_end.shape[0]):
+        reward[i] = (y0[i, last] - y_end[i, last]) * mass_ref_kg / -propellant_ref_kg
+        late[i] = t_end[i] * time_ref_s >= t_limit_s
+        if late[i] or status[i] != integ.STATUS_COMPLETED or t_burn[i] == t_burn[i]:
+            n_busy += 1
+    return n_busy
+
+
+@numba.njit(cache=True)
+def _fuel_used_and_time(m_start, y, t_nd, mass_ref_kg, time_ref_s, fuel, t_s
+                        ):  # pragma: no cover  (compiled)
+    """Propellant used since the episode's start (kg) and episode time (s) per lander, into
+    ``fuel`` and ``t_s`` (allocated by the caller: NumPy allocates faster than numba boxes)."""
+    last = y.shape[1] - 1
+    for i in range(y.shape[0]):
+        fuel[i] = (m_start[i] - y[i, last]) * mass_ref_kg
+        t_s[i] = t_nd[i] * time_ref_s
+
+
 class LanderBatch:
     """State and step physics of ``n`` landers of one task.
 
@@ -95,7 +134,7 @@ class LanderBatch:
         self._coefs = np.zeros((self.n, 1, nu, 1))
         self._h = np.full(self.n, task.h_nd)
         self._r_stop = np.full(self.n, task.r_stop_nd)
-        self._nan = np.full(self.n, np.nan)
+        self._nan = np.full((2, self.n), np.nan)
         self._t_limit_s = task.time_limit_s - 1e-9 * task.dt_s
         self._parallel = (self.n >= PARALLEL_MIN_BATCH if parallel is None else bool(parallel)) \
             and numba.config.NUMBA_NUM_THREADS > 1
@@ -120,10 +159,11 @@ class LanderBatch:
         ``miss``: NaN where undefined, as :meth:`step` returns them).
         """
         task = self.task
-        return {"fuel_used_kg": (self.m_start_nd - self.y[:, -1]) * task.mass_ref_kg,
-                "is_success": success, "altitude_m": task.altitude_m(self.y),
-                "time_s": self.t_nd * task.time_ref_s, "touchdown_speed_m_s": speed,
-                "miss_distance_m": miss}
+        fuel, t_s = np.empty((2, self.n))
+        _fuel_used_and_time(self.m_start_nd, self.y, self.t_nd, task.mass_ref_kg,
+                            task.time_ref_s, fuel, t_s)
+        return {"fuel_used_kg": fuel, "is_success": success, "altitude_m": task.altitude_m(self.y),
+                "time_s": t_s, "touchdown_speed_m_s": speed, "miss_distance_m": miss}
 
     # -- physics --------------------------------------------------------------------------------
     def _powered(self, idx, y0: np.ndarray, t0: np.ndarray, controls: np.ndarray):
@@ -141,9 +181,7 @@ class LanderBatch:
             h = self._h[:k]
             rs = task.stop_radius(y0) if varies else self._r_stop[:k]
             parallel = self._parallel and k >= integ._PARALLEL_MIN_BATCH
-        breaks[:, 0] = t0
-        breaks[:, 1] = t0 + task.dt_nd
-        coefs[:, 0, :, 0] = controls
+        _prepare(t0, task.dt_nd, controls, breaks, coefs)
         return integ.integrate_prepared(
             task.model, y0, t0, h, task.substeps, breaks, coefs, task.params_array,
             task.dry_mass_nd, rs, True, parallel)
@@ -187,19 +225,19 @@ class LanderBatch:
         else:
             y0, t0 = self.y[idx], self.t_nd[idx]
         y_end, t_end, status, t_burn = self._powered(idx, y0, t0, controls)
-        t_s = t_end * task.time_ref_s
-        if not (np.count_nonzero(status) or np.count_nonzero(t_burn == t_burn)
-                or np.count_nonzero(t_s >= self._t_limit_s)):
+        k = len(y_end)
+        reward = np.empty(k)
+        late = np.empty(k, dtype=bool)
+        if not self._fuel_and_clock(y0, y_end, t_end, status, t_burn, reward, late):
             # no event, engine on, time left (every step of an episode but its last): the fuel
-            # term is the whole outcome; counts, not reductions, keep this cheap for one lander
-            reward = (y0[:, -1] - y_end[:, -1]) * task.mass_ref_kg / -task.propellant_ref_kg
+            # term is the whole outcome
             self._store(idx, y_end, t_end)
-            k = len(y_end)
-            nan = self._nan[:k]
-            return {"reward": reward, "terminated": np.zeros(k, dtype=bool),
-                    "truncated": np.zeros(k, dtype=bool), "touchdown_speed_m_s": nan.copy(),
-                    "miss_distance_m": nan.copy(), "is_success": np.zeros(k, dtype=bool)}
-        m_before = y0[:, -1]
+            # one allocation each for the flags and the undefined metrics (rows are separate)
+            flags = np.zeros((3, k), dtype=bool)
+            nan = self._nan[:, :k].copy()
+            return {"reward": reward, "terminated": flags[0], "truncated": flags[1],
+                    "touchdown_speed_m_s": nan[0], "miss_distance_m": nan[1],
+                    "is_success": flags[2]}
         t_step_end = t0 + task.dt_nd
         burnt = ~np.isnan(t_burn)
         # A speed minimum above the cut-off speed is not an engine cut-off (the cut-off logic is
@@ -232,9 +270,8 @@ class LanderBatch:
             touchdown[j] = landed
             lost[j] = ~landed
         self._store(idx, y_end, t_end)
-        reward = (m_before - y_end[:, -1]) * task.mass_ref_kg / -task.propellant_ref_kg
-        t_s = t_end * task.time_ref_s
-        truncated = ~touchdown & (lost | (t_s >= self._t_limit_s))
+        self._fuel_and_clock(y0, y_end, t_end, status, t_burn, reward, late)
+        truncated = ~touchdown & (lost | late)
         ended = touchdown | truncated
         speed = np.full(len(y_end), np.nan)
         miss = np.full(len(y_end), np.nan)
@@ -258,6 +295,13 @@ class LanderBatch:
                     / task.propellant_ref_kg
         return {"reward": reward, "terminated": touchdown, "truncated": truncated,
                 "touchdown_speed_m_s": speed, "miss_distance_m": miss, "is_success": success}
+
+    def _fuel_and_clock(self, y0, y_end, t_end, status, t_burn, reward, late) -> int:
+        """Fuel reward and time-limit flags of the step (see :func:`_fuel_and_clock`)."""
+        task = self.task
+        return _fuel_and_clock(y0, y_end, t_end, status, t_burn, task.mass_ref_kg,
+                               task.propellant_ref_kg, task.time_ref_s, self._t_limit_s,
+                               reward, late)
 
     def _store(self, idx, y_end: np.ndarray, t_end: np.ndarray) -> None:
         if idx is None:

@@ -28,12 +28,11 @@ _orbital_frame_jit = numba.njit(cache=True, inline="always")(dyn.orbital_frame)
 
 
 @numba.njit(cache=True)
-def _observation_kernel(y, t_s, c, lo, hi):  # pragma: no cover  (compiled)
-    """Observations (B, 9) float32 of states y (B, 7) at times t_s (B,); ``c`` packs the
-    constants (see ``PinpointTask._obs_consts``). One compiled loop serves the single env and
-    the vector envs, so both give bit-identical observations."""
+def _observation_kernel(y, t_s, c, lo, hi, out):  # pragma: no cover  (compiled)
+    """Observations (B, 9) float32 of states y (B, 7) at times t_s (B,) into ``out`` (allocated
+    by the caller: NumPy allocates faster than numba boxes a new array); ``c`` packs the
+    constants (see ``PinpointTask._obs_consts``)."""
     n = y.shape[0]
-    out = np.empty((n, 9), dtype=np.float32)
     raw = np.empty(9)
     for i in range(n):
         x, yy, z = y[i, 0], y[i, 1], y[i, 2]
@@ -52,7 +51,29 @@ def _observation_kernel(y, t_s, c, lo, hi):  # pragma: no cover  (compiled)
         raw[8] = t_s[i] / c[13]
         for j in range(9):
             out[i, j] = min(max(raw[j], lo[j]), hi[j])
-    return out
+
+
+@numba.njit(cache=True)
+def _controls_kernel(a, lo_a, span_a, lo_b, span_b, throttle_channel, u):  # pragma: no cover
+    """(α, β rad, throttle) (B, 3) of finite actions a (B, n_act) into ``u``: the arithmetic of
+    :func:`angles_from_action` (clip, then the affine map; ``span`` = upper − lower bound),
+    compiled so that one lander costs no more than a NumPy call."""
+    for i in range(a.shape[0]):
+        u[i, 0] = lo_a + 0.5 * (min(max(a[i, 0], -1.0), 1.0) + 1.0) * span_a
+        u[i, 1] = lo_b + 0.5 * (min(max(a[i, 1], -1.0), 1.0) + 1.0) * span_b
+        if throttle_channel:
+            u[i, 2] = 0.5 * (min(max(a[i, 2], -1.0), 1.0) + 1.0)
+        else:
+            u[i, 2] = 1.0
+
+
+@numba.njit(cache=True)
+def _altitude_kernel(y, radius_nd, length_ref_m, out):  # pragma: no cover  (compiled)
+    """Altitude (m) above the sphere of radius ``radius_nd`` of states y (B, 7) into ``out``,
+    compiled for the same reason as the observation."""
+    for i in range(y.shape[0]):
+        r = np.sqrt(y[i, 0] * y[i, 0] + y[i, 1] * y[i, 1] + y[i, 2] * y[i, 2])
+        out[i] = (r - radius_nd) * length_ref_m
 
 
 def angles_from_action(action, alpha_bounds_rad: tuple[float, float] = _PENG.alpha_bounds_rad,
@@ -128,6 +149,8 @@ class PinpointTask(LandingTask):
             self.gate_range_m = require_finite_positive("gate_range_m", gate_range_m)
             self._gate_cos = math.cos(self.gate_range_m / (self.r_stop_nd * s.length_m))
             self._target_unit = self.target_nd / np.linalg.norm(self.target_nd)
+        (lo_a, hi_a), (lo_b, hi_b) = sc.alpha_bounds_rad, sc.beta_bounds_rad
+        self._angle_map = (lo_a, hi_a - lo_a, lo_b, hi_b - lo_b)
         n_act = 3 if self.throttle_channel else 2
         self.action_space = box([-1.0] * n_act, [1.0] * n_act)
         # v2 lets the lander fly below the gate away from the target: altitude down to the
@@ -148,9 +171,8 @@ class PinpointTask(LandingTask):
         """(α, β rad, throttle) (B, 3) of actions (B, n_act): :func:`angles_from_action` on the
         scenario's bounds, throttle (a₂ + 1)/2 with a throttle channel, else 1."""
         u = np.empty((len(a), 3))
-        u[:, 0], u[:, 1] = angles_from_action(a[:, :2], self.scenario.alpha_bounds_rad,
-                                              self.scenario.beta_bounds_rad)
-        u[:, 2] = 0.5 * (np.clip(a[:, 2], -1.0, 1.0) + 1.0) if self.throttle_channel else 1.0
+        _controls_kernel(np.ascontiguousarray(a, dtype=np.float64), *self._angle_map,
+                         self.throttle_channel, u)
         return u
 
     def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
@@ -206,9 +228,11 @@ class PinpointTask(LandingTask):
 
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Observations (B, 9) float32 (see Observation Space in the env's manual)."""
-        return _observation_kernel(np.ascontiguousarray(y, dtype=np.float64),
-                                   np.ascontiguousarray(t_s, dtype=np.float64),
-                                   self._obs_consts, self.obs_low, self.obs_high)
+        out = np.empty((len(y), 9), dtype=np.float32)
+        _observation_kernel(np.ascontiguousarray(y, dtype=np.float64),
+                            np.ascontiguousarray(t_s, dtype=np.float64), self._obs_consts,
+                            self.obs_low, self.obs_high, out)
+        return out
 
     def speed_m_s(self, y: np.ndarray) -> np.ndarray:
         """Speed relative to the rotating Moon (m/s), shape (B,)."""
@@ -216,8 +240,10 @@ class PinpointTask(LandingTask):
 
     def altitude_m(self, y: np.ndarray) -> np.ndarray:
         """Altitude above the reference sphere R_L (m) (the target is 2 km above it)."""
-        return (np.sqrt(np.sum(y[:, 0:3] ** 2, axis=1)) - self.surface_radius_nd) \
-            * self.length_ref_m
+        out = np.empty(len(y))
+        _altitude_kernel(np.ascontiguousarray(y, dtype=np.float64), self.surface_radius_nd,
+                         self.length_ref_m, out)
+        return out
 
     def landing_metrics(self, y: np.ndarray, touched_down: np.ndarray):
         """Speed at the gate (m/s) and miss distance (m): distance from the target to the

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numba
 import numpy as np
 
 from .. import integrators as integ
@@ -23,6 +24,36 @@ __all__ = ["LunarSoftLandingEnv", "LunarSoftLandingVectorEnv", "PlanarTask",
 #: |φ| reached at action ±1: the engine can point anywhere from straight down to straight up on
 #: the braking side (cos φ >= 0), which contains the fuel-optimal law (0 → 90°, [000]).
 MAX_THRUST_ANGLE_RAD = 0.5 * math.pi
+
+
+@numba.njit(cache=True)
+def _controls_kernel(a, throttle_channel, u):  # pragma: no cover  (compiled)
+    """(φ rad, throttle) (B, 2) of finite actions a (B, n_act) into ``u``: the arithmetic of
+    :func:`thrust_angle_from_action` (clip, then scale), compiled so that one lander costs no
+    more than a NumPy call (``u`` allocated by the caller: NumPy allocates faster than numba
+    boxes a new array)."""
+    for i in range(a.shape[0]):
+        u[i, 0] = MAX_THRUST_ANGLE_RAD * min(max(a[i, 0], -1.0), 1.0)
+        if throttle_channel:
+            u[i, 1] = 0.5 * (min(max(a[i, 1], -1.0), 1.0) + 1.0)
+        else:
+            u[i, 1] = 1.0
+
+
+@numba.njit(cache=True)
+def _observation_kernel(y, t_s, c, lo, hi, out):  # pragma: no cover  (compiled)
+    """Observations (B, 5) float32 of states y (B, 5) at times t_s (B,) into ``out``; ``c``
+    packs the constants (see ``PlanarTask._obs_consts``). Compiled for the same reason as the
+    pinpoint observation: one lander must not pay a dozen NumPy calls."""
+    raw = np.empty(5)
+    for i in range(y.shape[0]):
+        raw[0] = (y[i, 0] - c[0]) * c[1]
+        raw[1] = y[i, 1] * c[2]
+        raw[2] = y[i, 0] * y[i, 3] * c[3]
+        raw[3] = (y[i, 4] - c[4]) / c[5]
+        raw[4] = t_s[i] / c[6]
+        for j in range(5):
+            out[i, j] = min(max(raw[j], lo[j]), hi[j])
 
 
 def thrust_angle_from_action(action) -> np.ndarray:
@@ -85,27 +116,27 @@ class PlanarTask(LandingTask):
         self.obs_low = np.array([0.0, -20.0, -2.0, 0.0, 0.0])
         self.obs_high = np.array([20.0, 20.0, 2.0, 1.5, 2.0])
         self.observation_space = box(self.obs_low, self.obs_high)
+        v = self.velocity_ref_m_s
+        self._obs_consts = np.array([
+            self.r_stop_nd, self.length_ref_m / self.altitude_scale_m,
+            v / (0.1 * self.speed_scale_m_s), v / self.speed_scale_m_s, self.dry_mass_nd,
+            self.prop_nominal_nd, self.time_limit_s])
 
     # -- mapping --------------------------------------------------------------------------------
     def controls_from_actions(self, a: np.ndarray) -> np.ndarray:
         """(φ rad, throttle) (B, 2) of actions (B, n_act): :func:`thrust_angle_from_action`,
         throttle (a₁ + 1)/2 with a throttle channel, else 1."""
         u = np.empty((len(a), 2))
-        u[:, 0] = thrust_angle_from_action(a[:, 0])
-        u[:, 1] = 0.5 * (np.clip(a[:, 1], -1.0, 1.0) + 1.0) if self.throttle_channel else 1.0
+        _controls_kernel(np.ascontiguousarray(a, dtype=np.float64), self.throttle_channel, u)
         return u
 
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Observations (B, 5) float32 (see Observation Space in the env's manual)."""
-        v = self.velocity_ref_m_s
-        obs = np.empty((len(y), 5))
-        obs[:, 0] = (y[:, 0] - self.r_stop_nd) * (self.length_ref_m / self.altitude_scale_m)
-        obs[:, 1] = y[:, 1] * (v / (0.1 * self.speed_scale_m_s))
-        obs[:, 2] = y[:, 0] * y[:, 3] * (v / self.speed_scale_m_s)
-        obs[:, 3] = (y[:, 4] - self.dry_mass_nd) / self.prop_nominal_nd
-        obs[:, 4] = t_s / self.time_limit_s
-        np.clip(obs, self.obs_low, self.obs_high, out=obs)
-        return obs.astype(np.float32)
+        out = np.empty((len(y), 5), dtype=np.float32)
+        _observation_kernel(np.ascontiguousarray(y, dtype=np.float64),
+                            np.ascontiguousarray(t_s, dtype=np.float64), self._obs_consts,
+                            self.obs_low, self.obs_high, out)
+        return out
 
     def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """SI quantities encoded in observations (B, 5): the inverse of :meth:`observation`
