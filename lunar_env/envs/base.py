@@ -230,10 +230,10 @@ class LanderEnv(_TaskDescription, gym.Env):
         self._done = False
         self._history = [(self._batch.y[0].copy(), None)] if self.render_mode else []
         b = self._batch
-        obs = b.observations()[0]
         none = np.full(1, np.nan)
-        info = _single_info(b.info_arrays(none, none, np.zeros(1, dtype=bool)),
-                            self._task.has_target)
+        q = b.info_arrays(none, none, np.zeros(1, dtype=bool))
+        obs = b.observations(q["time_s"])[0]
+        info = _single_info(q, self._task.has_target)
         if self.render_mode == "human":
             self.render()
         return obs, info
@@ -242,22 +242,23 @@ class LanderEnv(_TaskDescription, gym.Env):
         if self._done:
             raise RuntimeError("the episode has ended (or reset() was never called); call reset()")
         if (type(action) is np.ndarray and action.shape == self._act_shape
-                and action.dtype.kind == "f"):
-            row = action.tolist()  # Python floats: the cheapest finite check for one lander
-            if not all(map(math.isfinite, row)):
+                and (action.dtype == np.float32 or action.dtype == np.float64)):
+            # the common case, checked cheaply: Python floats are the fastest finite test for
+            # one lander, and the compiled control map takes float32 as it is
+            if not all(map(math.isfinite, action.tolist())):
                 validate_actions(action, self._act_shape)  # raises with the full message
-            a = np.array([row])
+            a = action[None]
         else:
             a = validate_actions(action, self._act_shape)[None]
         b = self._batch
         controls = self._task.controls_from_actions(a)
         out = b.step(controls)
-        obs = b.observations()[0]
+        q = b.info_arrays(out["touchdown_speed_m_s"], out["miss_distance_m"], out["is_success"])
+        obs = b.observations(q["time_s"])[0]
         terminated = bool(out["terminated"][0])
         truncated = bool(out["truncated"][0])
         self._done = terminated or truncated
-        info = _single_info(b.info_arrays(out["touchdown_speed_m_s"], out["miss_distance_m"],
-                                          out["is_success"]), self._task.has_target)
+        info = _single_info(q, self._task.has_target)
         if self.render_mode:
             self._history.append((b.y[0].copy(), controls[0]))
             if self.render_mode == "human":
@@ -431,8 +432,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         self._autoreset[:] = False
         self._started = True
         n = self.num_envs
-        return self._batch.observations(), self._info(np.full(n, np.nan), np.full(n, np.nan),
-                                                      np.zeros(n, bool))
+        return self._observe_and_info(np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, bool))
 
     def step(self, actions):
         self._require_started()
@@ -464,8 +464,10 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
             for i in reset_idx:
                 self._reset_one(int(i), None)
         self._autoreset = terminated | truncated
-        return (self._batch.observations(), reward, terminated, truncated,
-                self._info(speed, miss, success))
+        obs, info = self._observe_and_info(speed, miss, success)
+        return obs, reward, terminated, truncated, info
 
-    def _info(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray) -> dict:
-        return _vector_info(self._batch.info_arrays(speed, miss, success), self._task.has_target)
+    def _observe_and_info(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray
+                          ) -> tuple[np.ndarray, dict]:
+        q = self._batch.info_arrays(speed, miss, success)
+        return self._batch.observations(q["time_s"]), _vector_info(q, self._task.has_target)

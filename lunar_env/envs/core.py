@@ -135,7 +135,10 @@ class LanderBatch:
         self._h = np.full(self.n, task.h_nd)
         self._r_stop = np.full(self.n, task.r_stop_nd)
         self._nan = np.full((2, self.n), np.nan)
+        self._late = np.zeros(self.n, dtype=bool)
         self._t_limit_s = task.time_limit_s - 1e-9 * task.dt_s
+        self._dt_nd = task.dt_nd
+        self._substeps = task.substeps
         self._parallel = (self.n >= PARALLEL_MIN_BATCH if parallel is None else bool(parallel)) \
             and numba.config.NUMBA_NUM_THREADS > 1
 
@@ -146,9 +149,11 @@ class LanderBatch:
         self.t_nd[i] = 0.0
         self.m_start_nd[i] = self.y[i, -1] if np.ndim(i) == 0 else self.y[i][:, -1]
 
-    def observations(self) -> np.ndarray:
-        """Observations (n, n_obs) float32 of every lander now."""
-        return self.task.observation(self.y, self.t_nd * self.task.time_ref_s)
+    def observations(self, t_s: np.ndarray | None = None) -> np.ndarray:
+        """Observations (n, n_obs) float32 of every lander now; ``t_s`` (n,) their episode
+        times (s) when already at hand (``info_arrays(...)["time_s"]``), saving a multiply."""
+        return self.task.observation(self.y, self.t_nd * self.task.time_ref_s if t_s is None
+                                     else t_s)
 
     def info_arrays(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray
                     ) -> dict[str, np.ndarray]:
@@ -159,7 +164,8 @@ class LanderBatch:
         ``miss``: NaN where undefined, as :meth:`step` returns them).
         """
         task = self.task
-        fuel, t_s = np.empty((2, self.n))
+        fuel = np.empty(self.n)
+        t_s = np.empty(self.n)
         _fuel_used_and_time(self.m_start_nd, self.y, self.t_nd, task.mass_ref_kg,
                             task.time_ref_s, fuel, t_s)
         return {"fuel_used_kg": fuel, "is_success": success, "altitude_m": task.altitude_m(self.y),
@@ -181,10 +187,9 @@ class LanderBatch:
             h = self._h[:k]
             rs = task.stop_radius(y0) if varies else self._r_stop[:k]
             parallel = self._parallel and k >= integ._PARALLEL_MIN_BATCH
-        _prepare(t0, task.dt_nd, controls, breaks, coefs)
-        return integ.integrate_prepared(
-            task.model, y0, t0, h, task.substeps, breaks, coefs, task.params_array,
-            task.dry_mass_nd, rs, True, parallel)
+        _prepare(t0, self._dt_nd, controls, breaks, coefs)
+        return integ.integrate_prepared(task.model, y0, t0, h, self._substeps, breaks, coefs,
+                                        task.params_array, task.dry_mass_nd, rs, True, parallel)
 
     def _resume(self, y0: np.ndarray, t0: float, t1: float, controls: np.ndarray):
         """Powered flight of one lander from a speed minimum that is not a cut-off to the step's
@@ -227,7 +232,7 @@ class LanderBatch:
         y_end, t_end, status, t_burn = self._powered(idx, y0, t0, controls)
         k = len(y_end)
         reward = np.empty(k)
-        late = np.empty(k, dtype=bool)
+        late = self._late[:k]  # internal: the returned flags are built from it
         if not self._fuel_and_clock(y0, y_end, t_end, status, t_burn, reward, late):
             # no event, engine on, time left (every step of an episode but its last): the fuel
             # term is the whole outcome

@@ -16,7 +16,7 @@ from .. import dynamics as dyn
 from .. import integrators as integ
 from ..scenarios import PinpointScenario, get_scenario
 from .base import LanderEnv, LanderVectorEnv
-from .task import LandingTask, StepSettings, box
+from .task import LandingTask, StepSettings, box, float_array
 
 __all__ = ["LunarPinpointLandingEnv", "LunarPinpointLandingVectorEnv", "PinpointTask",
            "angles_from_action", "action_from_angles"]
@@ -171,7 +171,7 @@ class PinpointTask(LandingTask):
         """(α, β rad, throttle) (B, 3) of actions (B, n_act): :func:`angles_from_action` on the
         scenario's bounds, throttle (a₂ + 1)/2 with a throttle channel, else 1."""
         u = np.empty((len(a), 3))
-        _controls_kernel(np.ascontiguousarray(a, dtype=np.float64), *self._angle_map,
+        _controls_kernel(float_array(a), *self._angle_map,
                          self.throttle_channel, u)
         return u
 

@@ -16,7 +16,7 @@ import numpy as np
 from .. import integrators as integ
 from ..scenarios import PlanarScenario, get_scenario
 from .base import LanderEnv, LanderVectorEnv
-from .task import LandingTask, StepSettings, box
+from .task import LandingTask, StepSettings, box, float_array
 
 __all__ = ["LunarSoftLandingEnv", "LunarSoftLandingVectorEnv", "PlanarTask",
            "thrust_angle_from_action", "action_from_thrust_angle", "MAX_THRUST_ANGLE_RAD"]
@@ -54,6 +54,13 @@ def _observation_kernel(y, t_s, c, lo, hi, out):  # pragma: no cover  (compiled)
         raw[4] = t_s[i] / c[6]
         for j in range(5):
             out[i, j] = min(max(raw[j], lo[j]), hi[j])
+
+
+@numba.njit(cache=True)
+def _altitude_kernel(y, r_stop_nd, length_ref_m, out):  # pragma: no cover  (compiled)
+    """Altitude (m) above the surface radius of states y (B, 5) into ``out``."""
+    for i in range(y.shape[0]):
+        out[i] = (y[i, 0] - r_stop_nd) * length_ref_m
 
 
 def thrust_angle_from_action(action) -> np.ndarray:
@@ -127,7 +134,7 @@ class PlanarTask(LandingTask):
         """(φ rad, throttle) (B, 2) of actions (B, n_act): :func:`thrust_angle_from_action`,
         throttle (a₁ + 1)/2 with a throttle channel, else 1."""
         u = np.empty((len(a), 2))
-        _controls_kernel(np.ascontiguousarray(a, dtype=np.float64), self.throttle_channel, u)
+        _controls_kernel(float_array(a), self.throttle_channel, u)
         return u
 
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
@@ -170,7 +177,10 @@ class PlanarTask(LandingTask):
 
     def altitude_m(self, y: np.ndarray) -> np.ndarray:
         """Altitude above the surface radius (m), shape (B,)."""
-        return (y[:, 0] - self.r_stop_nd) * self.length_ref_m
+        out = np.empty(len(y))
+        _altitude_kernel(np.ascontiguousarray(y, dtype=np.float64), self.r_stop_nd,
+                         self.length_ref_m, out)
+        return out
 
     def landing_metrics(self, y: np.ndarray, touched_down: np.ndarray):
         """Touchdown speed (m/s); for a lander that did not touch down, the speed it would have

@@ -28,7 +28,7 @@ from gymnasium import spaces
 
 from ..validation import require_bool, require_finite_positive, require_integer
 
-__all__ = ["LandingTask", "StepSettings", "fall_steps", "box"]
+__all__ = ["LandingTask", "StepSettings", "fall_steps", "float_array", "box"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,6 +102,16 @@ class StepSettings:
                    throttle_channel=bool(throttle_channel),
                    success_speed_m_s=float(success_speed_m_s),
                    cutoff_speed_m_s=float(cutoff_speed_m_s), success_miss_m=float(miss))
+
+
+def float_array(a) -> np.ndarray:
+    """``a`` as a C-contiguous float32 or float64 array for the compiled maps (float32 actions
+    are kept: the kernels widen each value to float64 exactly, so results do not change, and
+    one conversion call is saved per step)."""
+    a = np.asarray(a)
+    if a.dtype != np.float32:
+        a = a.astype(np.float64, copy=False)
+    return np.ascontiguousarray(a)
 
 
 def fall_steps(max_fall_s: float, h_s: float) -> int:
