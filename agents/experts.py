@@ -262,9 +262,8 @@ class PinpointPontryaginExpert:
     def match_gate(self, env) -> None:
         """Keep the extremals above the gate where ``env`` counts it (its ``gate_range_m``:
         near the target in v2, everywhere in v0/v1)."""
-        task = getattr(env, "_task", None)
-        if task is not None and hasattr(task, "gate_range_m"):
-            self.feedback.gate_floor_range_m = task.gate_range_m
+        if hasattr(env, "gate_range_m"):
+            self.feedback.gate_floor_range_m = env.gate_range_m
 
     @property
     def last_status(self) -> list[str]:
