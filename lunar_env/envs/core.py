@@ -134,6 +134,12 @@ class LanderBatch:
         self._coefs = np.zeros((self.n, 1, nu, 1))
         self._h = np.full(self.n, task.h_nd)
         self._r_stop = np.full(self.n, task.r_stop_nd)
+        # the kernel writes the step's end into the spare state buffers, which then swap with
+        # the current ones (new result arrays would cost more than integrating one lander)
+        self._y_spare = np.zeros((self.n, nx))
+        self._t_spare = np.zeros(self.n)
+        self._status = np.zeros(self.n, dtype=np.int64)
+        self._t_burn = np.zeros(self.n)
         self._nan = np.full((2, self.n), np.nan)
         self._late = np.zeros(self.n, dtype=bool)
         self._t_limit_s = task.time_limit_s - 1e-9 * task.dt_s
@@ -180,6 +186,7 @@ class LanderBatch:
             if varies:
                 rs[:] = task.stop_radius(y0)
             parallel = self._parallel
+            out = (self._y_spare, self._t_spare, self._status, self._t_burn)
         else:
             k = len(y0)
             breaks = np.empty((k, 2))
@@ -187,9 +194,11 @@ class LanderBatch:
             h = self._h[:k]
             rs = task.stop_radius(y0) if varies else self._r_stop[:k]
             parallel = self._parallel and k >= integ._PARALLEL_MIN_BATCH
+            out = (np.empty_like(y0), np.empty(k), np.empty(k, dtype=np.int64), np.empty(k))
         _prepare(t0, self._dt_nd, controls, breaks, coefs)
         return integ.integrate_prepared(task.model, y0, t0, h, self._substeps, breaks, coefs,
-                                        task.params_array, task.dry_mass_nd, rs, True, parallel)
+                                        task.params_array, task.dry_mass_nd, rs, True, parallel,
+                                        out)
 
     def _resume(self, y0: np.ndarray, t0: float, t1: float, controls: np.ndarray):
         """Powered flight of one lander from a speed minimum that is not a cut-off to the step's
@@ -309,9 +318,9 @@ class LanderBatch:
                                reward, late)
 
     def _store(self, idx, y_end: np.ndarray, t_end: np.ndarray) -> None:
-        if idx is None:
-            self.y = y_end
-            self.t_nd = t_end
+        if idx is None:  # y_end, t_end are the spare buffers: swap
+            self._y_spare, self.y = self.y, y_end
+            self._t_spare, self.t_nd = self.t_nd, t_end
         else:
             self.y[idx] = y_end
             self.t_nd[idx] = t_end
