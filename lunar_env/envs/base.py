@@ -89,12 +89,13 @@ def _single_info(q: dict[str, np.ndarray], has_target: bool) -> dict:
     """Gymnasium single-env info of lander 0 of :meth:`LanderBatch.info_arrays` ``q``: Python
     scalars, and only where defined (no NaN in infos): the touchdown speed after touchdown, the
     miss distance at the end of a pinpoint episode."""
-    info = {"fuel_used_kg": float(q["fuel_used_kg"][0]), "is_success": bool(q["is_success"][0]),
-            "altitude_m": float(q["altitude_m"][0]), "time_s": float(q["time_s"][0])}
-    speed = float(q["touchdown_speed_m_s"][0])
+    # .item(): the Python scalar of a one-element array, the cheapest conversion
+    info = {"fuel_used_kg": q["fuel_used_kg"].item(), "is_success": q["is_success"].item(),
+            "altitude_m": q["altitude_m"].item(), "time_s": q["time_s"].item()}
+    speed = q["touchdown_speed_m_s"].item()
     if speed == speed:
         info["touchdown_speed_m_s"] = speed
-    miss = float(q["miss_distance_m"][0])
+    miss = q["miss_distance_m"].item()
     if has_target and miss == miss:
         info["miss_distance_m"] = miss
     return info
@@ -197,7 +198,6 @@ class LanderEnv(_TaskDescription, gym.Env):
         self._act_shape = self.action_space.shape
         self._done = True
         self._history: list = []
-        self._last_info: dict = {}
         self._renderer = None
 
     # -- public state -----------------------------------------------------------------------------
@@ -222,7 +222,8 @@ class LanderEnv(_TaskDescription, gym.Env):
         return self._task.observation(y, t)
 
     # -- protocol -------------------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None
+              ) -> tuple[np.ndarray, dict]:
         check_reset_options(options, self._task.model.n_state)
         super().reset(seed=seed)
         y0 = self._task.initial_state(self.np_random, options)
@@ -238,7 +239,7 @@ class LanderEnv(_TaskDescription, gym.Env):
             self.render()
         return obs, info
 
-    def step(self, action):
+    def step(self, action) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self._done:
             raise RuntimeError("the episode has ended (or reset() was never called); call reset()")
         if (type(action) is np.ndarray and action.shape == self._act_shape
@@ -255,15 +256,15 @@ class LanderEnv(_TaskDescription, gym.Env):
         out = b.step(controls)
         q = b.info_arrays(out["touchdown_speed_m_s"], out["miss_distance_m"], out["is_success"])
         obs = b.observations(q["time_s"])[0]
-        terminated = bool(out["terminated"][0])
-        truncated = bool(out["truncated"][0])
+        terminated = out["terminated"].item()
+        truncated = out["truncated"].item()
         self._done = terminated or truncated
         info = _single_info(q, self._task.has_target)
         if self.render_mode:
             self._history.append((b.y[0].copy(), controls[0]))
             if self.render_mode == "human":
                 self.render()
-        return obs, float(out["reward"][0]), terminated, truncated, info
+        return obs, out["reward"].item(), terminated, truncated, info
 
     def render(self):
         if self.render_mode is None:
@@ -398,7 +399,8 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
     def _reset_one(self, i: int, options: dict | None) -> None:
         self._batch.set_state(i, self._initial_state(i, options))
 
-    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None
+              ) -> tuple[np.ndarray, dict]:
         """Reset every sub-env (see the class docstring for seeds and options).
 
         All-or-nothing: every initial state is computed first, so a bad row of
@@ -434,7 +436,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         n = self.num_envs
         return self._observe_and_info(np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, bool))
 
-    def step(self, actions):
+    def step(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         self._require_started()
         a = validate_actions(actions, self._act_shape)
         controls = self._task.controls_from_actions(a)

@@ -140,7 +140,7 @@ class LanderBatch:
         self._t_spare = np.zeros(self.n)
         self._status = np.zeros(self.n, dtype=np.int64)
         self._t_burn = np.zeros(self.n)
-        self._nan = np.full((2, self.n), np.nan)
+        self._nan = np.full(self.n, np.nan)
         self._late = np.zeros(self.n, dtype=bool)
         self._t_limit_s = task.time_limit_s - 1e-9 * task.dt_s
         self._dt_nd = task.dt_nd
@@ -246,12 +246,10 @@ class LanderBatch:
             # no event, engine on, time left (every step of an episode but its last): the fuel
             # term is the whole outcome
             self._store(idx, y_end, t_end)
-            # one allocation each for the flags and the undefined metrics (rows are separate)
-            flags = np.zeros((3, k), dtype=bool)
-            nan = self._nan[:, :k].copy()
-            return {"reward": reward, "terminated": flags[0], "truncated": flags[1],
-                    "touchdown_speed_m_s": nan[0], "miss_distance_m": nan[1],
-                    "is_success": flags[2]}
+            nan = self._nan[:k]
+            return {"reward": reward, "terminated": np.zeros(k, dtype=bool),
+                    "truncated": np.zeros(k, dtype=bool), "touchdown_speed_m_s": nan.copy(),
+                    "miss_distance_m": nan.copy(), "is_success": np.zeros(k, dtype=bool)}
         t_step_end = t0 + task.dt_nd
         burnt = ~np.isnan(t_burn)
         # A speed minimum above the cut-off speed is not an engine cut-off (the cut-off logic is

@@ -108,10 +108,11 @@ def float_array(a) -> np.ndarray:
     """``a`` as a C-contiguous float32 or float64 array for the compiled maps (float32 actions
     are kept: the kernels widen each value to float64 exactly, so results do not change, and
     one conversion call is saved per step)."""
-    a = np.asarray(a)
-    if a.dtype != np.float32:
-        a = a.astype(np.float64, copy=False)
-    return np.ascontiguousarray(a)
+    if type(a) is not np.ndarray:
+        a = np.asarray(a)
+    if a.dtype != np.float32 and a.dtype != np.float64:
+        a = a.astype(np.float64)
+    return a if a.flags.c_contiguous else np.ascontiguousarray(a)
 
 
 def fall_steps(max_fall_s: float, h_s: float) -> int:
