@@ -142,7 +142,9 @@ class LanderBatch:
         self._t_burn = np.zeros(self.n)
         self._nan = np.full(self.n, np.nan)
         self._late = np.zeros(self.n, dtype=bool)
-        self._t_limit_s = task.time_limit_s - 1e-9 * task.dt_s
+        # constants of _fuel_and_clock: the fuel reward's units and the time-limit test
+        self._clock = (task.mass_ref_kg, task.propellant_ref_kg, task.time_ref_s,
+                       task.time_limit_s - 1e-9 * task.dt_s)
         self._dt_nd = task.dt_nd
         self._substeps = task.substeps
         self._parallel = (self.n >= PARALLEL_MIN_BATCH if parallel is None else bool(parallel)) \
@@ -242,7 +244,7 @@ class LanderBatch:
         k = len(y_end)
         reward = np.empty(k)
         late = self._late[:k]  # internal: the returned flags are built from it
-        if not self._fuel_and_clock(y0, y_end, t_end, status, t_burn, reward, late):
+        if not _fuel_and_clock(y0, y_end, t_end, status, t_burn, *self._clock, reward, late):
             # no event, engine on, time left (every step of an episode but its last): the fuel
             # term is the whole outcome
             self._store(idx, y_end, t_end)
@@ -282,7 +284,7 @@ class LanderBatch:
             touchdown[j] = landed
             lost[j] = ~landed
         self._store(idx, y_end, t_end)
-        self._fuel_and_clock(y0, y_end, t_end, status, t_burn, reward, late)
+        _fuel_and_clock(y0, y_end, t_end, status, t_burn, *self._clock, reward, late)
         truncated = ~touchdown & (lost | late)
         ended = touchdown | truncated
         speed = np.full(len(y_end), np.nan)
@@ -307,13 +309,6 @@ class LanderBatch:
                     / task.propellant_ref_kg
         return {"reward": reward, "terminated": touchdown, "truncated": truncated,
                 "touchdown_speed_m_s": speed, "miss_distance_m": miss, "is_success": success}
-
-    def _fuel_and_clock(self, y0, y_end, t_end, status, t_burn, reward, late) -> int:
-        """Fuel reward and time-limit flags of the step (see :func:`_fuel_and_clock`)."""
-        task = self.task
-        return _fuel_and_clock(y0, y_end, t_end, status, t_burn, task.mass_ref_kg,
-                               task.propellant_ref_kg, task.time_ref_s, self._t_limit_s,
-                               reward, late)
 
     def _store(self, idx, y_end: np.ndarray, t_end: np.ndarray) -> None:
         if idx is None:  # y_end, t_end are the spare buffers: swap
