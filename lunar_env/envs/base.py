@@ -253,8 +253,10 @@ class LanderEnv(_TaskDescription, gym.Env):
             a = validate_actions(action, self._act_shape)[None]
         b = self._batch
         controls = self._task.controls_from_actions(a)
-        out = b.step(controls)
-        q = b.info_arrays(out["touchdown_speed_m_s"], out["miss_distance_m"], out["is_success"])
+        # scratch results: read at once below (Python scalars), so no new arrays are needed
+        out = b.step(controls, scratch=True)
+        q = b.info_arrays(out["touchdown_speed_m_s"], out["miss_distance_m"], out["is_success"],
+                          scratch=True)
         obs = b.observations(q["time_s"])[0]
         terminated = out["terminated"].item()
         truncated = out["truncated"].item()

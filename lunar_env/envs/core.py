@@ -140,8 +140,15 @@ class LanderBatch:
         self._t_spare = np.zeros(self.n)
         self._status = np.zeros(self.n, dtype=np.int64)
         self._t_burn = np.zeros(self.n)
-        self._nan = np.full(self.n, np.nan)
         self._late = np.zeros(self.n, dtype=bool)
+        # scratch results (see ``step``): read-only, so that a caller cannot corrupt them
+        self._reward = np.zeros(self.n)
+        self._fuel_used = np.zeros(self.n)
+        self._time_s = np.zeros(self.n)
+        self._nan = np.full(self.n, np.nan)
+        self._no = np.zeros(self.n, dtype=bool)
+        self._nan.flags.writeable = False
+        self._no.flags.writeable = False
         # constants of _fuel_and_clock: the fuel reward's units and the time-limit test
         self._clock = (task.mass_ref_kg, task.propellant_ref_kg, task.time_ref_s,
                        task.time_limit_s - 1e-9 * task.dt_s)
@@ -163,17 +170,21 @@ class LanderBatch:
         return self.task.observation(self.y, self.t_nd * self.task.time_ref_s if t_s is None
                                      else t_s)
 
-    def info_arrays(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray
-                    ) -> dict[str, np.ndarray]:
+    def info_arrays(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray,
+                    scratch: bool = False) -> dict[str, np.ndarray]:
         """What every ``info`` reports, per lander (n,), keys :data:`INFO_KEYS`.
 
         ``fuel_used_kg`` since the episode's start (kg), ``is_success``, ``altitude_m`` (m),
         ``time_s`` (s), ``touchdown_speed_m_s`` (m/s) and ``miss_distance_m`` (m) (``speed``,
-        ``miss``: NaN where undefined, as :meth:`step` returns them).
+        ``miss``: NaN where undefined, as :meth:`step` returns them). ``scratch``: as in
+        :meth:`step` (fuel and time in the batch's buffers, valid until the next call).
         """
         task = self.task
-        fuel = np.empty(self.n)
-        t_s = np.empty(self.n)
+        if scratch:
+            fuel, t_s = self._fuel_used, self._time_s
+        else:
+            fuel = np.empty(self.n)
+            t_s = np.empty(self.n)
         _fuel_used_and_time(self.m_start_nd, self.y, self.t_nd, task.mass_ref_kg,
                             task.time_ref_s, fuel, t_s)
         return {"fuel_used_kg": fuel, "is_success": success, "altitude_m": task.altitude_m(self.y),
@@ -226,7 +237,8 @@ class LanderBatch:
             events=(integ.RadiusCrossing(task.r_stop_nd),),
             parallel=self._parallel and k >= integ._PARALLEL_MIN_BATCH)
 
-    def step(self, controls: np.ndarray, idx: np.ndarray | None = None) -> dict:
+    def step(self, controls: np.ndarray, idx: np.ndarray | None = None,
+             scratch: bool = False) -> dict:
         """Advance landers ``idx`` (all if None) by one env step under ``controls`` (k, nu).
 
         ``controls`` must already be validated and mapped to radians/throttle
@@ -234,6 +246,10 @@ class LanderBatch:
         ``terminated`` (touchdown), ``truncated``, ``touchdown_speed_m_s`` (m/s; NaN if no
         touchdown), ``miss_distance_m`` (m; NaN unless a pinpoint episode ended),
         ``is_success``.
+
+        ``scratch=True`` (for a caller that reads the results at once, like the single env):
+        the arrays may be the batch's own read-only buffers, valid until the next call; for
+        one lander, new arrays would cost as much as the step's bookkeeping.
         """
         task = self.task
         if idx is None:
@@ -242,12 +258,16 @@ class LanderBatch:
             y0, t0 = self.y[idx], self.t_nd[idx]
         y_end, t_end, status, t_burn = self._powered(idx, y0, t0, controls)
         k = len(y_end)
-        reward = np.empty(k)
+        reward = self._reward[:k] if scratch else np.empty(k)
         late = self._late[:k]  # internal: the returned flags are built from it
         if not _fuel_and_clock(y0, y_end, t_end, status, t_burn, *self._clock, reward, late):
             # no event, engine on, time left (every step of an episode but its last): the fuel
             # term is the whole outcome
             self._store(idx, y_end, t_end)
+            if scratch:
+                no, nan = self._no[:k], self._nan[:k]
+                return {"reward": reward, "terminated": no, "truncated": no,
+                        "touchdown_speed_m_s": nan, "miss_distance_m": nan, "is_success": no}
             nan = self._nan[:k]
             return {"reward": reward, "terminated": np.zeros(k, dtype=bool),
                     "truncated": np.zeros(k, dtype=bool), "touchdown_speed_m_s": nan.copy(),
