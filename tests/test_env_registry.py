@@ -11,6 +11,7 @@ from gymnasium.vector import AutoresetMode
 
 import lunar_env  # noqa: F401  (registers the ids)
 from lunar_env.envs import LanderEnv, LanderVectorEnv
+from lunar_env.envs.core import LanderBatch
 from lunar_env.envs.task import LandingTask, StepSettings
 
 LANDER_IDS = sorted(env_id for env_id, spec in gym.registry.items()
@@ -42,6 +43,28 @@ def test_check_env_and_pickle_round_trip(env_id):
         s1, s2 = env.step(a), clone.step(a)
         np.testing.assert_array_equal(s1[0], s2[0])
         assert s1[1:] == s2[1:]
+
+
+@pytest.mark.parametrize("env_id", LANDER_IDS)
+def test_single_env_results_survive_later_steps(env_id):
+    """The single env steps through the batch's scratch buffers: what it returned must not
+    change when it steps again (fresh observation, Python scalars in reward and info)."""
+    env = gym.make(env_id).unwrapped
+    obs, _ = env.reset(seed=2)
+    a = np.zeros(env.action_space.shape, dtype=np.float32)
+    out = env.step(a)
+    kept = (out[0].copy(), out[1], dict(out[4]))
+    assert type(out[1]) is float and all(type(v) in (float, bool) for v in out[4].values())
+    env.step(a)
+    np.testing.assert_array_equal(out[0], kept[0])
+    assert out[1] == kept[1] and out[4] == kept[2]
+    # the batch's scratch flags are read-only: a caller cannot corrupt later steps
+    batch = LanderBatch(env.task, 1)
+    batch.set_state(0, env.state_nd)
+    res = batch.step(env.task.controls_from_actions(a[None]), scratch=True)
+    assert not res["terminated"][0]  # a step in mid-descent
+    with pytest.raises(ValueError, match="read-only"):
+        res["terminated"][0] = True
 
 
 @pytest.mark.parametrize("env_id", LANDER_IDS)
