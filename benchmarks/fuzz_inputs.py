@@ -143,7 +143,7 @@ def _names_it(exc: BaseException, names) -> bool:
 
 def _expected_kept(env, kw) -> str | None:
     """None if every accepted argument is kept exactly; else what was changed."""
-    task = env._task
+    task = env.task
     for name, v in kw.items():
         if name in _NUMERIC:
             if v is None and name in ("time_limit_s", "max_fall_s"):
@@ -182,16 +182,16 @@ def _materialise(opts, env, vector):
             sc = env.scenario
             rng = np.random.default_rng(seed)
             if "Pinpoint" in type(env).__name__:
-                nd = np.stack([sc.state_nd(s, env._task.scaling)
+                nd = np.stack([sc.state_nd(s, env.task.scaling)
                                for s in sc.sample_initial(rng, rows)])
                 si = nd.copy()
-                s = env._task.scaling
+                s = env.task.scaling
                 si[:, :3] *= s.length_m
                 si[:, 3:6] *= s.velocity_m_s
                 si[:, 6] *= s.mass_kg
             else:
                 si = sc.sample_initial(rng, rows)
-                nd = sc.si_to_nd(si, env._task.scaling)
+                nd = sc.si_to_nd(si, env.task.scaling)
             arr = si if key == "state_si" else nd
             if length != arr.shape[1]:
                 arr = np.resize(arr, (rows, length))

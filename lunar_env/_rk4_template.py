@@ -280,3 +280,18 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
                 for j in range(nx):
                     traj[i, s2, j] = y[j]
     return y_end, t_end, status, t_burnout, n_rec, traj
+
+
+def propagate_into(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_speed_min,
+                   y_end, t_end, status, t_burnout):
+    """:func:`propagate` without recording, its results copied into the caller's arrays
+    ``y_end`` (B, nx), ``t_end``, ``status`` (int64), ``t_burnout`` (B,). For callers that
+    step often with few trajectories (environments): handing new arrays back to Python costs
+    several times what the integration of one lander does, copying into prepared ones does not.
+    """
+    ye, te, st, tb, _, _ = propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop,
+                                     stop_at_speed_min, False)
+    y_end[:] = ye
+    t_end[:] = te
+    status[:] = st
+    t_burnout[:] = tb

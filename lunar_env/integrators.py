@@ -56,15 +56,16 @@ _PARALLEL_MIN_BATCH = 32
 # keep compile time down.
 _INLINED: tuple[str, ...] = ()
 _TEMPLATE_FUNCTIONS = ("control_in", "segment_at", "rk4_core", "rk4_step", "event_value",
-                       "is_after", "locate", "propagate")
+                       "is_after", "locate", "propagate", "propagate_into")
 
 
 def _instantiate(model_name: str, bindings: dict) -> tuple:
-    """Compile the template functions with the model's names bound; returns (serial, parallel).
+    """Compile the template functions with the model's names bound; returns the ``propagate``
+    kernels (serial, parallel) followed by the ``propagate_into`` kernels (serial, parallel).
 
     Each copy gets its own qualified name so numba's on-disk cache keeps them apart.
     """
-    kernels = []
+    kernels, into = [], []
     for parallel in (False, True):
         ns = dict(vars(_tmpl))
         ns.update(bindings)
@@ -82,7 +83,8 @@ def _instantiate(model_name: str, bindings: dict) -> tuple:
             else:
                 ns[fname] = njit(cache=True)(fn)
         kernels.append(ns["propagate"])
-    return tuple(kernels)
+        into.append(ns["propagate_into"])
+    return (*kernels, *into)
 
 
 # ---- planar bindings --------------------------------------------------------------------------
@@ -206,6 +208,12 @@ class Model:
         if not self._kernels:
             self._kernels.extend(_instantiate(self.name, self._bindings))
         return self._kernels[1 if parallel else 0]
+
+    def kernel_into(self, parallel: bool):
+        """Compiled ``propagate_into`` kernel: results copied into the caller's arrays."""
+        if not self._kernels:
+            self._kernels.extend(_instantiate(self.name, self._bindings))
+        return self._kernels[3 if parallel else 2]
 
 
 PLANAR = Model(
@@ -419,7 +427,8 @@ def integrate(model: Model, y0_nd: np.ndarray, *, t0_nd, dt_nd, n_steps: int,
 def integrate_prepared(model: Model, y0_nd: np.ndarray, t0_nd: np.ndarray, dt_nd: np.ndarray,
                        n_steps: int, breaks: np.ndarray, coefs: np.ndarray,
                        params_array: np.ndarray, dry_mass_nd: float, r_stop_nd: np.ndarray,
-                       stop_at_speed_min: bool, parallel: bool = False
+                       stop_at_speed_min: bool, parallel: bool = False,
+                       out: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Lean fast path of :func:`integrate` for callers that step often (environments).
 
@@ -431,11 +440,20 @@ def integrate_prepared(model: Model, y0_nd: np.ndarray, t0_nd: np.ndarray, dt_nd
     ``coefs`` (B, n_seg, n_control, order) as in :class:`PiecewisePolynomial`, ``params_array``
     from ``params.as_array()``. No recording.
 
+    ``out``: optional arrays ``(y_end (B, n_state), t_end (B,), status (B,) int64,
+    t_burnout (B,))``, C-contiguous, not overlapping the inputs, that receive the results (and
+    are returned): for a few trajectories, new result arrays cost several times the
+    integration itself.
+
     Returns
     -------
     y_end, t_end, status, t_burnout
         As the fields of :class:`Propagation` of the same name.
     """
+    if out is not None:
+        model.kernel_into(parallel)(y0_nd, t0_nd, dt_nd, n_steps, breaks, coefs, params_array,
+                                    dry_mass_nd, r_stop_nd, stop_at_speed_min, *out)
+        return out
     y_end, t_end, status, t_burn, _, _ = model.kernel(parallel)(
         y0_nd, t0_nd, dt_nd, n_steps, breaks, coefs, params_array, dry_mass_nd, r_stop_nd,
         stop_at_speed_min, False)

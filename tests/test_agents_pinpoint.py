@@ -183,8 +183,8 @@ def test_reference_profile_and_stop_point_features():
     # moving horizontally along the track at v: stop after v²/(2k), k = sqrt(a² − g²)
     o3 = q_rest.copy()
     v0 = 100.0
-    o3[0, 5] = v0 / env._task.speed_scale_m_s
-    o3[0, 2] = 5000.0 / env._task.range_scale_m
+    o3[0, 5] = v0 / env.task.speed_scale_m_s
+    o3[0, 2] = 5000.0 / env.task.range_scale_m
     c = env.physical_constants()
     m = c["dry_mass_kg"] + 0.1 * c["prop_nominal_kg"]
     a = c["thrust_n"] / m

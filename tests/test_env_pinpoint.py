@@ -244,7 +244,7 @@ def test_v2_gate_counts_only_near_the_target():
     the episode; the single and the vector env agree; every other step is v1's."""
     v2 = gym.make("LunarPinpointLanding-v2").unwrapped
     check_env(v2, skip_render_check=True)
-    task = v2._task
+    task = v2.task
     assert task.gate_range_m == 10_000.0 and v2.observation_space.low[0] < 0.0
     dive = np.tile(np.array([-1.0, 0.111], np.float32), (600, 1))
     ends = {}
@@ -285,6 +285,6 @@ def test_v2_gate_counts_only_near_the_target():
         assert task.stop_radius(far[None])[0] == (task.r_stop_nd if inside
                                                    else task.surface_radius_nd)
     # v0/v1: the gate sphere everywhere
-    t1 = gym.make(ENV_ID).unwrapped._task
+    t1 = gym.make(ENV_ID).unwrapped.task
     assert t1.stop_radius(below[None])[0] == t1.r_stop_nd
     assert not t1.below_gate_in_zone(below[None])[0]

@@ -35,6 +35,15 @@ def test_integrate_prepared_equals_integrate(name):
         np.testing.assert_array_equal(t, ref.t_end)
         np.testing.assert_array_equal(st, ref.status)
         np.testing.assert_array_equal(tb, ref.t_burnout)
+        # into the caller's arrays (stale contents must not leak into the results)
+        out = (np.full_like(y0, np.nan), np.full(40, -1.0), np.full(40, 7, dtype=np.int64),
+               np.zeros(40))
+        got = integ.integrate_prepared(
+            model, y0, t0, h, 300, ctrl.breaks, ctrl.coefs, params.as_array(), dry,
+            np.full(40, r_stop), True, parallel, out=out)
+        assert all(g is o for g, o in zip(got, out, strict=True))
+        for g, r in zip(got, (ref.y_end, ref.t_end, ref.status, ref.t_burnout), strict=True):
+            np.testing.assert_array_equal(g, r)
     assert len(set(ref.status.tolist())) >= 2  # the batch exercises events, not just the grid
 
 

@@ -162,9 +162,9 @@ def test_env_arguments_are_refused_by_name(env_id, kwargs, field):
 def test_integral_and_numpy_arguments_are_kept_exactly(env_id):
     env = gym.make(env_id, substeps=np.int64(3), dt_s=np.float32(0.5), throttle_channel=np.bool_(1),
                    max_fall_s=4.0).unwrapped
-    assert env._task.substeps == 3 and env.dt_s == 0.5 and env._task.throttle_channel is True
-    assert env._task.max_fall_s == 4.0
-    assert gym.make(env_id, substeps=2.0).unwrapped._task.substeps == 2
+    assert env.task.substeps == 3 and env.dt_s == 0.5 and env.task.throttle_channel is True
+    assert env.task.max_fall_s == 4.0
+    assert gym.make(env_id, substeps=2.0).unwrapped.task.substeps == 2
 
 
 @pytest.mark.parametrize("env_id", [SOFT, PIN])
@@ -172,7 +172,7 @@ def test_reset_options_unknown_keys_and_bad_state_lengths(env_id):
     env = gym.make(env_id)
     with pytest.raises(ValueError, match=r"unknown key\(s\) \['state'\]"):
         env.reset(options={"state": [1.0]})
-    n_state = env.unwrapped._task.model.n_state
+    n_state = env.unwrapped.task.model.n_state
     for key in ("state_si", "state_nd"):
         with pytest.raises(ValueError, match=key):
             env.reset(options={key: np.ones(n_state - 1)})

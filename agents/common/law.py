@@ -11,9 +11,9 @@ A **guidance law** is what a flight computer runs. It knows
 
 It never sees the simulator's true state or true plant. The rollout loop
 (:func:`agents.common.rollout.fly`) builds both objects from the env's public navigation output
-and hands nothing else to an ordinary law. Today the navigation solution equals the true state
-(the envs have no navigation errors yet); the day the env adds them, every law flies on the
-navigated state without a change here.
+and hands nothing else to an ordinary law: the navigation solution is the env's public
+``navigation_state_nd``. Today it equals the true state (the envs have no navigation errors
+yet); the day the env adds them, every law flies on the navigated state without a change here.
 
 A **privileged** law (a teacher that labels with the truth, e.g. a DAgger expert) says so in
 its type: it subclasses :class:`PrivilegedLaw`, and the loop passes it the :class:`Truth` as
@@ -110,7 +110,7 @@ class FlightComputer:
         return cls(env_id=env_id, scenario=core.scenario, dt_s=float(core.dt_s),
                    time_limit_s=float(core.time_limit_s), action_space=space,
                    has_target=bool(core.has_target),
-                   gate_range_m=getattr(core, "gate_range_m", None),
+                   gate_range_m=core.gate_range_m,
                    constants=dict(core.physical_constants()),
                    decode=core.observation_quantities,
                    observation_from_state=core.observation_from_state)

@@ -65,13 +65,12 @@ class Rollout:
 
 def _navigation(core, obs: np.ndarray, active: np.ndarray, privileged: bool
                 ) -> tuple[Navigation, Truth | None]:
-    """The navigation solution the env gives its flight computer (and the truth, for a
-    privileged law only). The envs have no navigation errors yet: the navigation solution is
-    the simulator's state, read here and nowhere else in the loop."""
-    state = np.asarray(core.state_nd)
+    """The navigation solution the env gives its flight computer (the env's public
+    ``navigation_state_nd``), and the simulator's truth for a privileged law only."""
     t_s = np.asarray(core.t_s, dtype=np.float64)
-    nav = Navigation(obs=obs, state_nd=state, t_s=t_s, active=active.copy())
-    return nav, (Truth(state_nd=state, t_s=t_s) if privileged else None)
+    nav = Navigation(obs=obs, state_nd=np.asarray(core.navigation_state_nd), t_s=t_s,
+                     active=active.copy())
+    return nav, (Truth(state_nd=np.asarray(core.state_nd), t_s=t_s) if privileged else None)
 
 
 def fly(env_id: str, law: GuidanceLaw, n: int, *,

@@ -23,13 +23,13 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 
 import lunar_env  # noqa: F401  (registers the ids)
-from lunar_env.envs._base import LanderVectorEnv, validate_actions
+from lunar_env.envs import LanderVectorEnv, validate_actions
 
 __all__ = ["LanderSB3VecEnv", "make_sb3_vec_env"]
 
 
 class LanderSB3VecEnv(VecEnv):
-    """SB3 ``VecEnv`` stepping a :class:`~lunar_env.envs._base.LanderVectorEnv` batch.
+    """SB3 ``VecEnv`` stepping a :class:`~lunar_env.envs.LanderVectorEnv` batch.
 
     :param native: the native vector env whose batch is stepped (its own NEXT_STEP autoreset
         is bypassed: this class resets finished sub-envs in the same step, as SB3 expects).

@@ -7,11 +7,20 @@
 
 Both have a native vector env (``gym.make_vec(id, num_envs=N,
 vectorization_mode="vector_entry_point")``).
+
+Public API for code built on the envs (agents, adapters, benchmarks): the env bases
+:class:`LanderEnv` and :class:`LanderVectorEnv`, :func:`validate_actions`, and the task
+contract :class:`~lunar_env.envs.task.LandingTask` with its shared settings
+:class:`~lunar_env.envs.task.StepSettings` (what a task supplies; ``env.task`` is one).
 """
 
 from gymnasium.envs.registration import register, registry
 
-__all__ = ["register_envs"]
+from .base import LanderEnv, LanderVectorEnv, validate_actions
+from .task import LandingTask, StepSettings
+
+__all__ = ["register_envs", "LanderEnv", "LanderVectorEnv", "validate_actions", "LandingTask",
+           "StepSettings"]
 
 _ENVS = {
     "LunarSoftLanding-v0": ("soft_landing", "LunarSoftLandingEnv", "LunarSoftLandingVectorEnv",

@@ -15,11 +15,11 @@ import numpy as np
 from .. import dynamics as dyn
 from .. import integrators as integ
 from ..scenarios import PinpointScenario, get_scenario
-from ._base import LanderEnv, LanderVectorEnv, box
-from ._core import init_task
+from .base import LanderEnv, LanderVectorEnv
+from .task import LandingTask, StepSettings, box, float_array
 
-__all__ = ["LunarPinpointLandingEnv", "LunarPinpointLandingVectorEnv", "angles_from_action",
-           "action_from_angles"]
+__all__ = ["LunarPinpointLandingEnv", "LunarPinpointLandingVectorEnv", "PinpointTask",
+           "angles_from_action", "action_from_angles"]
 
 _PENG = get_scenario("peng2012")
 
@@ -28,12 +28,11 @@ _orbital_frame_jit = numba.njit(cache=True, inline="always")(dyn.orbital_frame)
 
 
 @numba.njit(cache=True)
-def _observation_kernel(y, t_s, c, lo, hi):  # pragma: no cover  (compiled)
-    """Observations (B, 9) float32 of states y (B, 7) at times t_s (B,); ``c`` packs the
-    constants (see ``_PinpointTask._obs_consts``). One compiled loop serves the single env and
-    the vector envs, so both give bit-identical observations."""
+def _observation_kernel(y, t_s, c, lo, hi, out):  # pragma: no cover  (compiled)
+    """Observations (B, 9) float32 of states y (B, 7) at times t_s (B,) into ``out`` (allocated
+    by the caller: NumPy allocates faster than numba boxes a new array); ``c`` packs the
+    constants (see ``PinpointTask._obs_consts``)."""
     n = y.shape[0]
-    out = np.empty((n, 9), dtype=np.float32)
     raw = np.empty(9)
     for i in range(n):
         x, yy, z = y[i, 0], y[i, 1], y[i, 2]
@@ -52,7 +51,29 @@ def _observation_kernel(y, t_s, c, lo, hi):  # pragma: no cover  (compiled)
         raw[8] = t_s[i] / c[13]
         for j in range(9):
             out[i, j] = min(max(raw[j], lo[j]), hi[j])
-    return out
+
+
+@numba.njit(cache=True)
+def _controls_kernel(a, lo_a, span_a, lo_b, span_b, throttle_channel, u):  # pragma: no cover
+    """(α, β rad, throttle) (B, 3) of finite actions a (B, n_act) into ``u``: the arithmetic of
+    :func:`angles_from_action` (clip, then the affine map; ``span`` = upper − lower bound),
+    compiled so that one lander costs no more than a NumPy call."""
+    for i in range(a.shape[0]):
+        u[i, 0] = lo_a + 0.5 * (min(max(a[i, 0], -1.0), 1.0) + 1.0) * span_a
+        u[i, 1] = lo_b + 0.5 * (min(max(a[i, 1], -1.0), 1.0) + 1.0) * span_b
+        if throttle_channel:
+            u[i, 2] = 0.5 * (min(max(a[i, 2], -1.0), 1.0) + 1.0)
+        else:
+            u[i, 2] = 1.0
+
+
+@numba.njit(cache=True)
+def _altitude_kernel(y, radius_nd, length_ref_m, out):  # pragma: no cover  (compiled)
+    """Altitude (m) above the sphere of radius ``radius_nd`` of states y (B, 7) into ``out``,
+    compiled for the same reason as the observation."""
+    for i in range(y.shape[0]):
+        r = np.sqrt(y[i, 0] * y[i, 0] + y[i, 1] * y[i, 1] + y[i, 2] * y[i, 2])
+        out[i] = (r - radius_nd) * length_ref_m
 
 
 def angles_from_action(action, alpha_bounds_rad: tuple[float, float] = _PENG.alpha_bounds_rad,
@@ -82,8 +103,9 @@ def action_from_angles(alpha_rad, beta_rad,
     return np.clip(np.stack([a0, a1], axis=-1), -1.0, 1.0)
 
 
-class _PinpointTask:
-    """Everything scenario-specific of the pinpoint env (picklable)."""
+class PinpointTask(LandingTask):
+    """The pinpoint-landing task (:class:`~lunar_env.envs.task.LandingTask`; picklable).
+    Arguments: the env's (see the Arguments section of :class:`LunarPinpointLandingEnv`)."""
 
     has_target = True
     model = integ.MOON3D
@@ -98,26 +120,21 @@ class _PinpointTask:
         if not isinstance(sc, PinpointScenario):
             raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not a pinpoint scenario; "
                              "LunarPinpointLanding-v0 needs a PinpointScenario ('peng2012')")
-        init_task(self, sc, dt_s=dt_s, substeps=substeps, time_limit_s=time_limit_s,
-                  max_fall_s=max_fall_s, throttle_channel=throttle_channel,
-                  success_speed_m_s=success_speed_m_s, cutoff_speed_m_s=cutoff_speed_m_s,
-                  success_miss_m=success_miss_m)
+        settings = StepSettings.validated(
+            dt_s=dt_s, substeps=substeps, time_limit_s=time_limit_s, max_fall_s=max_fall_s,
+            throttle_channel=throttle_channel, success_speed_m_s=success_speed_m_s,
+            cutoff_speed_m_s=cutoff_speed_m_s, default_time_limit_s=1.5 * sc.tf_bounds_s[1],
+            success_miss_m=success_miss_m)
+        super().__init__(sc, settings)
         s = self.scaling
         #: v1 reward: an episode that ends without success is also charged the propellant left
         #: (see the Rewards section of the manual); False gives v0's reward
         self.charge_propellant_on_failure = bool(charge_propellant_on_failure)
         self.plane_normal = np.asarray(self.params.plane_normal)
-        self.success_miss_m = float(success_miss_m)
         self.surface_radius_nd = 1.0 * float(s.length_nd(sc.body.radius_m))
         # terminal gate: the sphere through the target ([001] ends at hf = 2 km above it)
         self.r_stop_nd = float(s.length_nd(sc.body.radius_m + sc.target.altitude_m))
         self.target_nd = s.length_nd(sc.target_position_m())
-        self.mass_ref_kg = s.mass_kg
-        self.time_ref_s = s.time_s
-        self.length_ref_m = s.length_m
-        self.velocity_ref_m_s = s.velocity_m_s
-        self.propellant_ref_kg = sc.vehicle.mass_kg - sc.vehicle.dry_mass_kg
-        self.prop_nominal_nd = float(s.mass_nd(sc.vehicle.mass_kg)) - self.dry_mass_nd
         self.altitude_scale_m = max(sc.initial.altitude_m - sc.target.altitude_m, 1.0)
         r0 = s.length_nd(sc.initial_position_velocity_m()[0])
         self.range_scale_m = max(float(np.linalg.norm(self.target_nd - r0)) * s.length_m, 1.0)
@@ -126,13 +143,14 @@ class _PinpointTask:
         #: v2: the 2 km gate counts only within this great-circle distance of the target (at
         #: the gate radius); elsewhere the lander may fly below 2 km and ends at the surface
         #: (None: the gate sphere ends the episode everywhere, v0/v1)
-        self.gate_range_m = None
         if gate_range_m is not None:
             from lunar_env.validation import require_finite_positive
 
             self.gate_range_m = require_finite_positive("gate_range_m", gate_range_m)
             self._gate_cos = math.cos(self.gate_range_m / (self.r_stop_nd * s.length_m))
             self._target_unit = self.target_nd / np.linalg.norm(self.target_nd)
+        (lo_a, hi_a), (lo_b, hi_b) = sc.alpha_bounds_rad, sc.beta_bounds_rad
+        self._angle_map = (lo_a, hi_a - lo_a, lo_b, hi_b - lo_b)
         n_act = 3 if self.throttle_channel else 2
         self.action_space = box([-1.0] * n_act, [1.0] * n_act)
         # v2 lets the lander fly below the gate away from the target: altitude down to the
@@ -150,25 +168,12 @@ class _PinpointTask:
 
     # -- mapping --------------------------------------------------------------------------------
     def controls_from_actions(self, a: np.ndarray) -> np.ndarray:
+        """(α, β rad, throttle) (B, 3) of actions (B, n_act): :func:`angles_from_action` on the
+        scenario's bounds, throttle (a₂ + 1)/2 with a throttle channel, else 1."""
         u = np.empty((len(a), 3))
-        u[:, 0], u[:, 1] = angles_from_action(a[:, :2], self.scenario.alpha_bounds_rad,
-                                              self.scenario.beta_bounds_rad)
-        u[:, 2] = 0.5 * (np.clip(a[:, 2], -1.0, 1.0) + 1.0) if self.throttle_channel else 1.0
+        _controls_kernel(float_array(a), *self._angle_map,
+                         self.throttle_channel, u)
         return u
-
-    def control_one(self, a: list) -> tuple:
-        """(α, β, throttle) of one action given as a list of floats (as the batch map)."""
-        lo_a, hi_a = self.scenario.alpha_bounds_rad
-        lo_b, hi_b = self.scenario.beta_bounds_rad
-        alpha = lo_a + 0.5 * (min(max(a[0], -1.0), 1.0) + 1.0) * (hi_a - lo_a)
-        beta = lo_b + 0.5 * (min(max(a[1], -1.0), 1.0) + 1.0) * (hi_b - lo_b)
-        thr = 0.5 * (min(max(a[2], -1.0), 1.0) + 1.0) if self.throttle_channel else 1.0
-        return (alpha, beta, thr)
-
-    def observation_one(self, y: list, t_s: float) -> np.ndarray:
-        """:meth:`observation` of one state given as a list of floats."""
-        return _observation_kernel(np.array([y]), np.array([t_s]), self._obs_consts,
-                                   self.obs_low, self.obs_high)[0]
 
     def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """SI quantities encoded in observations (B, 9): the inverse of :meth:`observation`
@@ -200,10 +205,6 @@ class _PinpointTask:
                 "mu_m3_s2": float(V * V * L),  # μ = 1 in normalised units
                 "gate_radius_m": float(self.r_stop_nd * L)}
 
-    def altitude_one(self, y: list) -> float:
-        return (math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) - self.surface_radius_nd) \
-            * self.length_ref_m
-
     def in_gate_zone(self, y: np.ndarray) -> np.ndarray:
         """(B,) bool: the lander is within ``gate_range_m`` of the target (great circle at the
         gate radius); all True without a gate range (v0/v1)."""
@@ -226,9 +227,12 @@ class _PinpointTask:
         return self.in_gate_zone(y) & (r < self.r_stop_nd * (1.0 - 1e-12))
 
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-        return _observation_kernel(np.ascontiguousarray(y, dtype=np.float64),
-                                   np.ascontiguousarray(t_s, dtype=np.float64),
-                                   self._obs_consts, self.obs_low, self.obs_high)
+        """Observations (B, 9) float32 (see Observation Space in the env's manual)."""
+        out = np.empty((len(y), 9), dtype=np.float32)
+        _observation_kernel(np.ascontiguousarray(y, dtype=np.float64),
+                            np.ascontiguousarray(t_s, dtype=np.float64), self._obs_consts,
+                            self.obs_low, self.obs_high, out)
+        return out
 
     def speed_m_s(self, y: np.ndarray) -> np.ndarray:
         """Speed relative to the rotating Moon (m/s), shape (B,)."""
@@ -236,8 +240,10 @@ class _PinpointTask:
 
     def altitude_m(self, y: np.ndarray) -> np.ndarray:
         """Altitude above the reference sphere R_L (m) (the target is 2 km above it)."""
-        return (np.sqrt(np.sum(y[:, 0:3] ** 2, axis=1)) - self.surface_radius_nd) \
-            * self.length_ref_m
+        out = np.empty(len(y))
+        _altitude_kernel(np.ascontiguousarray(y, dtype=np.float64), self.surface_radius_nd,
+                         self.length_ref_m, out)
+        return out
 
     def landing_metrics(self, y: np.ndarray, touched_down: np.ndarray):
         """Speed at the gate (m/s) and miss distance (m): distance from the target to the
@@ -255,6 +261,7 @@ class _PinpointTask:
 
     # -- initial states -------------------------------------------------------------------------
     def initial_state(self, rng: np.random.Generator, options: dict | None) -> np.ndarray:
+        """Normalised (x, y, z, vx, vy, vz, m) (see Starting State in the env's manual)."""
         sc = self.scenario
         s = self.scaling
         options = options or {}
@@ -424,10 +431,10 @@ _DOC = """
 
 class LunarPinpointLandingEnv(LanderEnv):
     __doc__ = "Pinpoint landing on a rotating Moon (single env)." + _DOC
-    _task_cls = _PinpointTask
+    _task_cls = PinpointTask
 
 
 class LunarPinpointLandingVectorEnv(LanderVectorEnv):
     __doc__ = ("Native vector version of :class:`LunarPinpointLandingEnv` (one compiled call "
                "per step, autoreset NEXT_STEP, sub-env i seeded with seed + i).\n" + _DOC)
-    _task_cls = _PinpointTask
+    _task_cls = PinpointTask

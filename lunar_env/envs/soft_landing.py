@@ -10,19 +10,57 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numba
 import numpy as np
 
 from .. import integrators as integ
 from ..scenarios import PlanarScenario, get_scenario
-from ._base import LanderEnv, LanderVectorEnv, box
-from ._core import init_task
+from .base import LanderEnv, LanderVectorEnv
+from .task import LandingTask, StepSettings, box, float_array
 
-__all__ = ["LunarSoftLandingEnv", "LunarSoftLandingVectorEnv", "thrust_angle_from_action",
-           "action_from_thrust_angle", "MAX_THRUST_ANGLE_RAD"]
+__all__ = ["LunarSoftLandingEnv", "LunarSoftLandingVectorEnv", "PlanarTask",
+           "thrust_angle_from_action", "action_from_thrust_angle", "MAX_THRUST_ANGLE_RAD"]
 
 #: |φ| reached at action ±1: the engine can point anywhere from straight down to straight up on
 #: the braking side (cos φ >= 0), which contains the fuel-optimal law (0 → 90°, [000]).
 MAX_THRUST_ANGLE_RAD = 0.5 * math.pi
+
+
+@numba.njit(cache=True)
+def _controls_kernel(a, throttle_channel, u):  # pragma: no cover  (compiled)
+    """(φ rad, throttle) (B, 2) of finite actions a (B, n_act) into ``u``: the arithmetic of
+    :func:`thrust_angle_from_action` (clip, then scale), compiled so that one lander costs no
+    more than a NumPy call (``u`` allocated by the caller: NumPy allocates faster than numba
+    boxes a new array)."""
+    for i in range(a.shape[0]):
+        u[i, 0] = MAX_THRUST_ANGLE_RAD * min(max(a[i, 0], -1.0), 1.0)
+        if throttle_channel:
+            u[i, 1] = 0.5 * (min(max(a[i, 1], -1.0), 1.0) + 1.0)
+        else:
+            u[i, 1] = 1.0
+
+
+@numba.njit(cache=True)
+def _observation_kernel(y, t_s, c, lo, hi, out):  # pragma: no cover  (compiled)
+    """Observations (B, 5) float32 of states y (B, 5) at times t_s (B,) into ``out``; ``c``
+    packs the constants (see ``PlanarTask._obs_consts``). Compiled for the same reason as the
+    pinpoint observation: one lander must not pay a dozen NumPy calls."""
+    raw = np.empty(5)
+    for i in range(y.shape[0]):
+        raw[0] = (y[i, 0] - c[0]) * c[1]
+        raw[1] = y[i, 1] * c[2]
+        raw[2] = y[i, 0] * y[i, 3] * c[3]
+        raw[3] = (y[i, 4] - c[4]) / c[5]
+        raw[4] = t_s[i] / c[6]
+        for j in range(5):
+            out[i, j] = min(max(raw[j], lo[j]), hi[j])
+
+
+@numba.njit(cache=True)
+def _altitude_kernel(y, r_stop_nd, length_ref_m, out):  # pragma: no cover  (compiled)
+    """Altitude (m) above the surface radius of states y (B, 5) into ``out``."""
+    for i in range(y.shape[0]):
+        out[i] = (y[i, 0] - r_stop_nd) * length_ref_m
 
 
 def thrust_angle_from_action(action) -> np.ndarray:
@@ -40,10 +78,12 @@ def action_from_thrust_angle(phi_rad) -> np.ndarray:
     return np.clip(np.asarray(phi_rad, dtype=np.float64) / MAX_THRUST_ANGLE_RAD, -1.0, 1.0)
 
 
-class _PlanarTask:
-    """Everything scenario-specific of the soft-landing env (picklable; no compiled objects)."""
+class PlanarTask(LandingTask):
+    """The soft-landing task (:class:`~lunar_env.envs.task.LandingTask`; picklable, no compiled
+    objects). Arguments: the env's (see the Arguments table of :class:`LunarSoftLandingEnv`)."""
 
     has_target = False
+    model = integ.PLANAR
 
     def __init__(self, scenario: str | PlanarScenario = "zhu2007", dt_s: float = 1.0,
                  substeps: int = 2, time_limit_s: float | None = None,
@@ -68,18 +108,13 @@ class _PlanarTask:
             sc = dataclasses.replace(
                 sc, name=f"{sc.name}@{level / 1e3:.4g}kN",
                 vehicle=dataclasses.replace(sc.vehicle, thrust_n=level))
-        init_task(self, sc, dt_s=dt_s, substeps=substeps, time_limit_s=time_limit_s,
-                  max_fall_s=max_fall_s, throttle_channel=throttle_channel,
-                  success_speed_m_s=success_speed_m_s, cutoff_speed_m_s=cutoff_speed_m_s)
+        settings = StepSettings.validated(
+            dt_s=dt_s, substeps=substeps, time_limit_s=time_limit_s, max_fall_s=max_fall_s,
+            throttle_channel=throttle_channel, success_speed_m_s=success_speed_m_s,
+            cutoff_speed_m_s=cutoff_speed_m_s, default_time_limit_s=1.5 * sc.tf_bounds_s[1])
+        super().__init__(sc, settings)
         s = self.scaling
-        self.success_miss_m = math.inf
         self.r_stop_nd = float(s.length_nd(sc.surface_radius_m))
-        self.mass_ref_kg = s.mass_kg
-        self.time_ref_s = s.time_s
-        self.length_ref_m = s.length_m
-        self.velocity_ref_m_s = s.velocity_m_s
-        self.propellant_ref_kg = sc.vehicle.mass_kg - sc.vehicle.dry_mass_kg
-        self.prop_nominal_nd = float(s.mass_nd(sc.vehicle.mass_kg)) - self.dry_mass_nd
         self.altitude_scale_m = max(sc.initial.radius_m - sc.surface_radius_m, 1.0)
         self.speed_scale_m_s = max(math.hypot(sc.initial.radial_velocity_m_s,
                                               sc.initial.tangential_velocity_m_s), 1.0)
@@ -88,50 +123,27 @@ class _PlanarTask:
         self.obs_low = np.array([0.0, -20.0, -2.0, 0.0, 0.0])
         self.obs_high = np.array([20.0, 20.0, 2.0, 1.5, 2.0])
         self.observation_space = box(self.obs_low, self.obs_high)
-        self._obs_low_list = self.obs_low.tolist()
-        self._obs_high_list = self.obs_high.tolist()
-
-    model = integ.PLANAR
+        v = self.velocity_ref_m_s
+        self._obs_consts = np.array([
+            self.r_stop_nd, self.length_ref_m / self.altitude_scale_m,
+            v / (0.1 * self.speed_scale_m_s), v / self.speed_scale_m_s, self.dry_mass_nd,
+            self.prop_nominal_nd, self.time_limit_s])
 
     # -- mapping --------------------------------------------------------------------------------
     def controls_from_actions(self, a: np.ndarray) -> np.ndarray:
+        """(φ rad, throttle) (B, 2) of actions (B, n_act): :func:`thrust_angle_from_action`,
+        throttle (a₁ + 1)/2 with a throttle channel, else 1."""
         u = np.empty((len(a), 2))
-        u[:, 0] = thrust_angle_from_action(a[:, 0])
-        u[:, 1] = 0.5 * (np.clip(a[:, 1], -1.0, 1.0) + 1.0) if self.throttle_channel else 1.0
+        _controls_kernel(float_array(a), self.throttle_channel, u)
         return u
 
-    def control_one(self, a: list) -> tuple:
-        """(φ, throttle) of one action given as a list of floats (same as the batch map)."""
-        phi = MAX_THRUST_ANGLE_RAD * min(max(a[0], -1.0), 1.0)
-        thr = 0.5 * (min(max(a[1], -1.0), 1.0) + 1.0) if self.throttle_channel else 1.0
-        return (phi, thr)
-
-    def observation_one(self, y: list, t_s: float) -> np.ndarray:
-        """:meth:`observation` of one state given as a list of floats (bit-identical)."""
-        r, vr, _, om, m = y
-        v = self.velocity_ref_m_s
-        lo, hi = self._obs_low_list, self._obs_high_list
-        raw = ((r - self.r_stop_nd) * (self.length_ref_m / self.altitude_scale_m),
-               vr * (v / (0.1 * self.speed_scale_m_s)),
-               r * om * (v / self.speed_scale_m_s),
-               (m - self.dry_mass_nd) / self.prop_nominal_nd,
-               t_s / self.time_limit_s)
-        return np.array([min(max(x, lo[i]), hi[i]) for i, x in enumerate(raw)],
-                        dtype=np.float32)
-
-    def altitude_one(self, y: list) -> float:
-        return (y[0] - self.r_stop_nd) * self.length_ref_m
-
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-        v = self.velocity_ref_m_s
-        obs = np.empty((len(y), 5))
-        obs[:, 0] = (y[:, 0] - self.r_stop_nd) * (self.length_ref_m / self.altitude_scale_m)
-        obs[:, 1] = y[:, 1] * (v / (0.1 * self.speed_scale_m_s))
-        obs[:, 2] = y[:, 0] * y[:, 3] * (v / self.speed_scale_m_s)
-        obs[:, 3] = (y[:, 4] - self.dry_mass_nd) / self.prop_nominal_nd
-        obs[:, 4] = t_s / self.time_limit_s
-        np.clip(obs, self.obs_low, self.obs_high, out=obs)
-        return obs.astype(np.float32)
+        """Observations (B, 5) float32 (see Observation Space in the env's manual)."""
+        out = np.empty((len(y), 5), dtype=np.float32)
+        _observation_kernel(np.ascontiguousarray(y, dtype=np.float64),
+                            np.ascontiguousarray(t_s, dtype=np.float64), self._obs_consts,
+                            self.obs_low, self.obs_high, out)
+        return out
 
     def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """SI quantities encoded in observations (B, 5): the inverse of :meth:`observation`
@@ -164,7 +176,11 @@ class _PlanarTask:
         return np.sqrt(y[:, 1] ** 2 + (y[:, 0] * y[:, 3]) ** 2) * self.velocity_ref_m_s
 
     def altitude_m(self, y: np.ndarray) -> np.ndarray:
-        return (y[:, 0] - self.r_stop_nd) * self.length_ref_m
+        """Altitude above the surface radius (m), shape (B,)."""
+        out = np.empty(len(y))
+        _altitude_kernel(np.ascontiguousarray(y, dtype=np.float64), self.r_stop_nd,
+                         self.length_ref_m, out)
+        return out
 
     def landing_metrics(self, y: np.ndarray, touched_down: np.ndarray):
         """Touchdown speed (m/s); for a lander that did not touch down, the speed it would have
@@ -176,6 +192,7 @@ class _PlanarTask:
 
     # -- initial states -------------------------------------------------------------------------
     def initial_state(self, rng: np.random.Generator, options: dict | None) -> np.ndarray:
+        """Normalised (r, vr, θ, ω, m) (see Starting State in the env's manual)."""
         sc = self.scenario
         options = options or {}
         if options.get("state_nd") is not None:
@@ -310,11 +327,11 @@ _DOC = """
 
 class LunarSoftLandingEnv(LanderEnv):
     __doc__ = "Soft landing of a constant-thrust, steer-only lander (single env)." + _DOC
-    _task_cls = _PlanarTask
+    _task_cls = PlanarTask
 
 
 class LunarSoftLandingVectorEnv(LanderVectorEnv):
     __doc__ = ("Native vector version of :class:`LunarSoftLandingEnv`: all N landers step in one "
                "compiled integrator call. Autoreset NEXT_STEP; sub-env i seeded with seed + i.\n"
                + _DOC)
-    _task_cls = _PlanarTask
+    _task_cls = PlanarTask

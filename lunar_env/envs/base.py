@@ -1,10 +1,12 @@
 """Task-generic single env and native vector env; the concrete envs subclass these.
 
-A *task* (``_PlanarTask``, ``_PinpointTask``) owns everything scenario-specific: spaces, the
-action-to-control map, observations, landing metrics and initial states. :class:`LanderEnv` and
-:class:`LanderVectorEnv` own the Gymnasium protocol; both step through
-:class:`~lunar_env.envs._core.LanderBatch`, so a vector env and N single envs do the same
-arithmetic.
+A *task* (:class:`~lunar_env.envs.task.LandingTask`: ``PlanarTask``, ``PinpointTask``) owns
+everything scenario-specific: spaces, the action-to-control map, observations, landing metrics
+and initial states. :class:`LanderEnv` and :class:`LanderVectorEnv` own the Gymnasium protocol
+and nothing else: both step through :meth:`LanderBatch.step
+<lunar_env.envs.core.LanderBatch.step>` (the single env is a batch of one) and report
+:meth:`~lunar_env.envs.core.LanderBatch.info_arrays`, so a vector env and N single envs do the
+same arithmetic by construction.
 """
 
 from __future__ import annotations
@@ -14,13 +16,12 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .. import integrators as integ
-from ._core import LanderBatch
+from .core import LanderBatch
+from .task import LandingTask
 
 __all__ = ["LanderEnv", "LanderVectorEnv", "validate_actions", "check_reset_options",
            "RESET_OPTION_KEYS"]
@@ -84,11 +85,56 @@ def check_reset_options(options, n_state: int, num_envs: int | None = None) -> N
             _check_state_option(key, options[key], n_state, num_envs)
 
 
+def _single_info(q: dict[str, np.ndarray], has_target: bool) -> dict:
+    """Gymnasium single-env info of lander 0 of :meth:`LanderBatch.info_arrays` ``q``: Python
+    scalars, and only where defined (no NaN in infos): the touchdown speed after touchdown, the
+    miss distance at the end of a pinpoint episode."""
+    # .item(): the Python scalar of a one-element array, the cheapest conversion
+    info = {"fuel_used_kg": q["fuel_used_kg"].item(), "is_success": q["is_success"].item(),
+            "altitude_m": q["altitude_m"].item(), "time_s": q["time_s"].item()}
+    speed = q["touchdown_speed_m_s"].item()
+    if speed == speed:
+        info["touchdown_speed_m_s"] = speed
+    miss = q["miss_distance_m"].item()
+    if has_target and miss == miss:
+        info["miss_distance_m"] = miss
+    return info
+
+
+def _vector_info(q: dict[str, np.ndarray], has_target: bool) -> dict:
+    """Gymnasium vector-env info of :meth:`LanderBatch.info_arrays` ``q``: "_key" marks the
+    sub-envs where "key" is defined (touchdown speed after a touchdown; miss distance at the end
+    of a pinpoint episode), undefined entries are 0."""
+    info = {k: q[k] for k in ("fuel_used_kg", "is_success", "altitude_m", "time_s")}
+    mask = np.ones(len(q["time_s"]), dtype=bool)
+    for k in list(info):
+        info["_" + k] = mask
+    keys = ("touchdown_speed_m_s", "miss_distance_m") if has_target else ("touchdown_speed_m_s",)
+    for k in keys:
+        undefined = np.isnan(q[k])
+        info[k] = np.where(undefined, 0.0, q[k])
+        info["_" + k] = ~undefined
+    return info
+
+
 class _TaskDescription:
     """What policies and wrappers may rely on, for the single and the vector env alike (read
-    from the env's task object ``self._task`` of class ``_task_cls``)."""
+    from the env's task, a :class:`~lunar_env.envs.task.LandingTask` of class ``_task_cls``)."""
 
-    _task_cls: type = None
+    _task_cls: type[LandingTask] = None
+    _task: LandingTask
+
+    @property
+    def task(self) -> LandingTask:
+        """The env's task (frozen: its settings, scaling and maps; see
+        :class:`~lunar_env.envs.task.LandingTask`)."""
+        return self._task
+
+    @property
+    def gate_range_m(self) -> float | None:
+        """Distance from the target (m) within which the terminal gate counts; None: the
+        terminal radius counts everywhere (soft landing, pinpoint v0/v1)."""
+        return self._task.gate_range_m
 
     @classmethod
     def task_defaults(cls) -> dict:
@@ -123,30 +169,14 @@ class _TaskDescription:
         return out
 
     def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
-        """SI quantities encoded in observations (the inverse of the observation map).
-
-        Raises
-        ------
-        TypeError
-            If this env's observation has no SI decoding.
-        """
-        fn = getattr(self._task, "observation_quantities", None)
-        if fn is None:
-            raise TypeError(f"{type(self).__name__} observations have no SI decoding")
-        return fn(obs)
+        """SI quantities encoded in observations (B, n_obs) (the inverse of the observation
+        map; see the task's :meth:`~lunar_env.envs.task.LandingTask.observation_quantities`)."""
+        return self._task.observation_quantities(obs)
 
     def physical_constants(self) -> dict[str, float]:
-        """SI constants of the lander and body (see the task's ``physical_constants``).
-
-        Raises
-        ------
-        TypeError
-            If this env does not provide them.
-        """
-        fn = getattr(self._task, "physical_constants", None)
-        if fn is None:
-            raise TypeError(f"{type(self).__name__} provides no physical constants")
-        return fn()
+        """SI constants of the lander and body (see the task's
+        :meth:`~lunar_env.envs.task.LandingTask.physical_constants`)."""
+        return self._task.physical_constants()
 
 
 class LanderEnv(_TaskDescription, gym.Env):
@@ -168,15 +198,23 @@ class LanderEnv(_TaskDescription, gym.Env):
         self._act_shape = self.action_space.shape
         self._done = True
         self._history: list = []
-        self._last_info: dict = {}
         self._renderer = None
 
     # -- public state -----------------------------------------------------------------------------
 
     @property
     def state_nd(self) -> np.ndarray:
-        """Current normalised state of the lander, shape (n_state,) (a copy)."""
+        """Current normalised state of the lander, shape (n_state,) (a copy): the simulator's
+        truth, for analysis and for privileged teachers; a guidance law reads
+        :attr:`navigation_state_nd`."""
         return self._batch.y[0].copy()
+
+    @property
+    def navigation_state_nd(self) -> np.ndarray:
+        """The navigation solution: the state the lander's flight computer is given,
+        normalised, shape (n_state,) (a copy); the observation encodes it. This env has no
+        navigation errors, so it equals :attr:`state_nd`."""
+        return self.state_nd
 
     @property
     def t_s(self) -> float:
@@ -193,87 +231,51 @@ class LanderEnv(_TaskDescription, gym.Env):
         return self._task.observation(y, t)
 
     # -- protocol -------------------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None
+              ) -> tuple[np.ndarray, dict]:
         check_reset_options(options, self._task.model.n_state)
         super().reset(seed=seed)
         y0 = self._task.initial_state(self.np_random, options)
         self._batch.set_state(0, y0)
         self._done = False
         self._history = [(self._batch.y[0].copy(), None)] if self.render_mode else []
-        obs = self._task.observation(self._batch.y, self._batch.t_nd * self._task.time_ref_s)[0]
-        info = self._info(np.nan, np.nan, False)
+        b = self._batch
+        none = np.full(1, np.nan)
+        q = b.info_arrays(none, none, np.zeros(1, dtype=bool))
+        obs = b.observations(q["time_s"])[0]
+        info = _single_info(q, self._task.has_target)
         if self.render_mode == "human":
             self.render()
         return obs, info
 
-    def step(self, action):
+    def step(self, action) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self._done:
             raise RuntimeError("the episode has ended (or reset() was never called); call reset()")
-        task = self._task
-        b = self._batch
         if (type(action) is np.ndarray and action.shape == self._act_shape
-                and action.dtype.kind == "f"):
-            a = action.tolist()  # Python floats: the cheapest route for one lander
-            if not all(map(math.isfinite, a)):
+                and (action.dtype == np.float32 or action.dtype == np.float64)):
+            # the common case, checked cheaply: Python floats are the fastest finite test for
+            # one lander, and the compiled control map takes float32 as it is
+            if not all(map(math.isfinite, action.tolist())):
                 validate_actions(action, self._act_shape)  # raises with the full message
+            a = action[None]
         else:
-            a = validate_actions(action, self._act_shape).tolist()
-        controls = task.control_one(a)
-        # what LanderBatch._powered does, on scalars
-        b.update_stop_radius()
-        t0 = b.t_nd
-        b._breaks[0, 0] = t0[0]
-        b._breaks[0, 1] = t0[0] + task.dt_nd
-        b._coefs[0, 0, :, 0] = controls
-        powered = integ.integrate_prepared(
-            task.model, b.y, t0, b._h, task.substeps, b._breaks, b._coefs, task.params_array,
-            task.dry_mass_nd, b._r_stop, True, False)
-        y_end, t_end, status, t_burn = powered
-        t_s = float(t_end[0]) * task.time_ref_s
-        if (status[0] == 0 and t_burn[0] != t_burn[0]
-                and t_s < task.time_limit_s - 1e-9 * task.dt_s):
-            # fast path (every step but the last): no event, engine still on, no time limit
-            m_before = float(b.y[0, -1])
-            b.y = y_end
-            b.t_nd = t_end
-            row = y_end[0].tolist()
-            reward = (row[-1] - m_before) * task.mass_ref_kg / task.propellant_ref_kg
-            obs = task.observation_one(row, t_s)
-            terminated = truncated = False
-            info = {"fuel_used_kg": (float(b.m_start_nd[0]) - row[-1]) * task.mass_ref_kg,
-                    "is_success": False, "altitude_m": task.altitude_one(row), "time_s": t_s}
-        else:
-            controls = np.asarray(controls, dtype=np.float64)[None]
-            out = b.step(controls, powered=powered)
-            obs = task.observation(b.y, b.t_nd * task.time_ref_s)[0]
-            reward = float(out["reward"][0])
-            terminated = bool(out["terminated"][0])
-            truncated = bool(out["truncated"][0])
-            self._done = terminated or truncated
-            info = self._info(float(out["touchdown_speed_m_s"][0]),
-                              float(out["miss_distance_m"][0]), bool(out["is_success"][0]))
+            a = validate_actions(action, self._act_shape)[None]
+        b = self._batch
+        controls = self._task.controls_from_actions(a)
+        # scratch results: read at once below (Python scalars), so no new arrays are needed
+        out = b.step(controls, scratch=True)
+        q = b.info_arrays(out["touchdown_speed_m_s"], out["miss_distance_m"], out["is_success"],
+                          scratch=True)
+        obs = b.observations(q["time_s"])[0]
+        terminated = out["terminated"].item()
+        truncated = out["truncated"].item()
+        self._done = terminated or truncated
+        info = _single_info(q, self._task.has_target)
         if self.render_mode:
-            self._history.append((b.y[0].copy(), np.array(controls, dtype=np.float64).ravel()))
+            self._history.append((b.y[0].copy(), controls[0]))
             if self.render_mode == "human":
                 self.render()
-        return obs, reward, terminated, truncated, info
-
-    def _info(self, touchdown_speed: float, miss: float, success: bool) -> dict:
-        b = self._batch
-        task = self._task
-        info = {
-            "fuel_used_kg": float((b.m_start_nd[0] - b.y[0, -1]) * task.mass_ref_kg),
-            "is_success": success,
-            "altitude_m": float(task.altitude_m(b.y)[0]),
-            "time_s": float(b.t_nd[0] * task.time_ref_s),
-        }
-        # only where defined (no NaN in infos): touchdown speed after touchdown, miss distance
-        # at the end of a pinpoint episode
-        if touchdown_speed == touchdown_speed:
-            info["touchdown_speed_m_s"] = touchdown_speed
-        if task.has_target and miss == miss:
-            info["miss_distance_m"] = miss
-        return info
+        return obs, out["reward"].item(), terminated, truncated, info
 
     def render(self):
         if self.render_mode is None:
@@ -315,7 +317,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
     ``state_nd`` may also be an array (N, n_state)).
 
     ``parallel``: use numba's parallel kernel (default: only from
-    :data:`~lunar_env.envs._core.PARALLEL_MIN_BATCH` landers; an env step is so little work per
+    :data:`~lunar_env.envs.core.PARALLEL_MIN_BATCH` landers; an env step is so little work per
     lander that thread start-up dominates below that). Results are identical either way.
     """
 
@@ -351,8 +353,15 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
 
     @property
     def state_nd(self) -> np.ndarray:
-        """Normalised states, shape (N, n_state) (a copy)."""
+        """Normalised states, shape (N, n_state) (a copy): the simulator's truth (see
+        :attr:`LanderEnv.state_nd`)."""
         return self._batch.y.copy()
+
+    @property
+    def navigation_state_nd(self) -> np.ndarray:
+        """The navigation solutions, shape (N, n_state) (see
+        :attr:`LanderEnv.navigation_state_nd`)."""
+        return self.state_nd
 
     @property
     def t_s(self) -> np.ndarray:
@@ -381,8 +390,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
 
     def observations(self) -> np.ndarray:
         """Current observations of all landers, shape (N, n_obs) float32."""
-        b = self._batch
-        return self._task.observation(b.y, b.t_nd * self._task.time_ref_s)
+        return self._batch.observations()
 
     def step_landers(self, actions) -> dict[str, np.ndarray]:
         """Advance every lander by one decision *without* autoreset (for adapters that reset in
@@ -391,12 +399,11 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         ``fuel_used_kg``, ``altitude_m``, ``time_s``."""
         self._require_started()
         a = validate_actions(actions, self._act_shape)
-        out = dict(self._batch.step(self._task.controls_from_actions(a)))
-        b, task = self._batch, self._task
-        out["fuel_used_kg"] = (b.m_start_nd - b.y[:, -1]) * task.mass_ref_kg
-        out["altitude_m"] = task.altitude_m(b.y)
-        out["time_s"] = b.t_nd * task.time_ref_s
-        return out
+        out = self._batch.step(self._task.controls_from_actions(a))
+        return {"reward": out["reward"], "terminated": out["terminated"],
+                "truncated": out["truncated"],
+                **self._batch.info_arrays(out["touchdown_speed_m_s"], out["miss_distance_m"],
+                                          out["is_success"])}
 
     def _initial_state(self, i: int, options: dict | None) -> np.ndarray:
         opt = options
@@ -410,7 +417,8 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
     def _reset_one(self, i: int, options: dict | None) -> None:
         self._batch.set_state(i, self._initial_state(i, options))
 
-    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None
+              ) -> tuple[np.ndarray, dict]:
         """Reset every sub-env (see the class docstring for seeds and options).
 
         All-or-nothing: every initial state is computed first, so a bad row of
@@ -443,12 +451,10 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         self._batch.set_state(np.arange(self.num_envs), y0)
         self._autoreset[:] = False
         self._started = True
-        b = self._batch
-        obs = self._task.observation(b.y, b.t_nd * self._task.time_ref_s)
         n = self.num_envs
-        return obs, self._info(np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, bool))
+        return self._observe_and_info(np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, bool))
 
-    def step(self, actions):
+    def step(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         self._require_started()
         a = validate_actions(actions, self._act_shape)
         controls = self._task.controls_from_actions(a)
@@ -478,34 +484,10 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
             for i in reset_idx:
                 self._reset_one(int(i), None)
         self._autoreset = terminated | truncated
-        b = self._batch
-        obs = self._task.observation(b.y, b.t_nd * self._task.time_ref_s)
-        return obs, reward, terminated, truncated, self._info(speed, miss, success)
+        obs, info = self._observe_and_info(speed, miss, success)
+        return obs, reward, terminated, truncated, info
 
-    def _info(self, speed, miss, success) -> dict:
-        b = self._batch
-        task = self._task
-        n = self.num_envs
-        info = {
-            "fuel_used_kg": (b.m_start_nd - b.y[:, -1]) * task.mass_ref_kg,
-            "is_success": success,
-            "altitude_m": task.altitude_m(b.y),
-            "time_s": b.t_nd * task.time_ref_s,
-        }
-        mask = np.ones(n, dtype=bool)
-        for k in list(info):
-            info["_" + k] = mask
-        # Gymnasium's vector-info convention: "_key" marks the sub-envs where "key" is defined
-        # (touchdown speed after a touchdown; miss distance at the end of a pinpoint episode).
-        info["touchdown_speed_m_s"] = np.where(np.isnan(speed), 0.0, speed)
-        info["_touchdown_speed_m_s"] = ~np.isnan(speed)
-        if task.has_target:
-            info["miss_distance_m"] = np.where(np.isnan(miss), 0.0, miss)
-            info["_miss_distance_m"] = ~np.isnan(miss)
-        return info
-
-
-def box(low, high) -> spaces.Box:
-    """float32 Box from bound lists."""
-    return spaces.Box(np.asarray(low, dtype=np.float32), np.asarray(high, dtype=np.float32),
-                      dtype=np.float32)
+    def _observe_and_info(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray
+                          ) -> tuple[np.ndarray, dict]:
+        q = self._batch.info_arrays(speed, miss, success)
+        return self._batch.observations(q["time_s"]), _vector_info(q, self._task.has_target)

@@ -1,0 +1,320 @@
+"""The task contract: what a landing task supplies to the env bases, the step and the renderer.
+
+A *task* owns everything scenario-specific of a landing env: its spaces, the action-to-control
+map, the observation map and its inverse, the landing metrics and the initial states.
+:class:`~lunar_env.envs.base.LanderEnv`, :class:`~lunar_env.envs.base.LanderVectorEnv`,
+:class:`~lunar_env.envs.core.LanderBatch` and :class:`~lunar_env.envs.rendering.Renderer` use
+nothing of a task but what :class:`LandingTask` declares here, so a new landing env is a new
+subclass that implements every abstract method and sets every declared attribute.
+
+States are normalised (μ = 1, lengths in units of ``length_ref_m``, ...; the model's own state
+layout, see :mod:`lunar_env.dynamics`) with shape ``(B, model.n_state)``; everything reported
+to users is SI, with the unit in the name.
+
+A task is immutable once constructed (its settings are read by every step; changing one under
+a running env would silently change the episode): setting or deleting an attribute afterwards
+raises ``AttributeError``. Build a new env for other settings.
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from ..validation import require_bool, require_finite_positive, require_integer
+
+__all__ = ["LandingTask", "StepSettings", "fall_steps", "float_array", "box"]
+
+
+@dataclasses.dataclass(frozen=True)
+class StepSettings:
+    """Validated settings every landing task shares (SI). Build with :meth:`validated`.
+
+    Attributes
+    ----------
+    dt_s : float
+        Decision interval: each action is held this long (s).
+    substeps : int
+        RK4 steps per env step.
+    time_limit_s : float
+        Episode time limit (s): truncation at ``t >= time_limit_s``.
+    max_fall_s : float
+        Longest free fall integrated after the engine stops (s); longer: truncation.
+    throttle_channel : bool
+        The action has a throttle channel (last), throttle = (a + 1) / 2.
+    success_speed_m_s : float
+        Largest touchdown (or gate) speed of a success (m/s).
+    cutoff_speed_m_s : float
+        Speed minima at or below this cut the engine off (m/s).
+    success_miss_m : float
+        Largest miss distance of a success (m); ``inf`` for a task without a target.
+    """
+
+    dt_s: float
+    substeps: int
+    time_limit_s: float
+    max_fall_s: float
+    throttle_channel: bool
+    success_speed_m_s: float
+    cutoff_speed_m_s: float
+    success_miss_m: float
+
+    @classmethod
+    def validated(cls, *, dt_s: float, substeps: int, time_limit_s: float | None,
+                  max_fall_s: float | None, throttle_channel: bool, success_speed_m_s: float,
+                  cutoff_speed_m_s: float, default_time_limit_s: float,
+                  success_miss_m: float | None = None) -> StepSettings:
+        """Settings from the env's keyword arguments, checked and with defaults resolved.
+
+        ``time_limit_s=None`` means ``default_time_limit_s`` (s); ``max_fall_s=None`` the time
+        limit; ``success_miss_m=None`` no miss criterion (``inf``). ``substeps`` must be an
+        integer >= 1 (1.7 is refused, not truncated), ``throttle_channel`` a bool (the string
+        ``"no"`` is refused, not read as True), the times, speeds and ``success_miss_m``
+        finite and > 0, and ``time_limit_s >= dt_s``.
+
+        Raises
+        ------
+        ValueError
+            (or :class:`~lunar_env.validation.InvalidTypeError`) naming the setting and its
+            value.
+        """
+        dt_s = require_finite_positive("dt_s", dt_s)
+        success_speed_m_s = require_finite_positive("success_speed_m_s", success_speed_m_s)
+        cutoff_speed_m_s = require_finite_positive("cutoff_speed_m_s", cutoff_speed_m_s)
+        miss = math.inf if success_miss_m is None else \
+            require_finite_positive("success_miss_m", success_miss_m)
+        substeps = require_integer("substeps", substeps, minimum=1)
+        throttle_channel = require_bool("throttle_channel", throttle_channel)
+        if time_limit_s is not None:
+            time_limit_s = require_finite_positive("time_limit_s", time_limit_s)
+        if max_fall_s is not None:
+            max_fall_s = require_finite_positive("max_fall_s", max_fall_s)
+        limit = float(time_limit_s if time_limit_s is not None else default_time_limit_s)
+        if not limit >= dt_s:
+            raise ValueError(f"time_limit_s = {limit!r} must be >= dt_s = {dt_s!r}")
+        return cls(dt_s=float(dt_s), substeps=int(substeps), time_limit_s=limit,
+                   max_fall_s=float(max_fall_s if max_fall_s is not None else limit),
+                   throttle_channel=bool(throttle_channel),
+                   success_speed_m_s=float(success_speed_m_s),
+                   cutoff_speed_m_s=float(cutoff_speed_m_s), success_miss_m=float(miss))
+
+
+def float_array(a) -> np.ndarray:
+    """``a`` as a C-contiguous float32 or float64 array for the compiled maps (float32 actions
+    are kept: the kernels widen each value to float64 exactly, so results do not change, and
+    one conversion call is saved per step)."""
+    if type(a) is not np.ndarray:
+        a = np.asarray(a)
+    if a.dtype != np.float32 and a.dtype != np.float64:
+        a = a.astype(np.float64)
+    return a if a.flags.c_contiguous else np.ascontiguousarray(a)
+
+
+def fall_steps(max_fall_s: float, h_s: float) -> int:
+    """Number of RK4 steps of length ``h_s`` (s) covering ``max_fall_s`` (s)."""
+    return max(1, int(math.ceil(max_fall_s / h_s - 1e-9)))
+
+
+class _FrozenAfterInit(abc.ABCMeta):
+    """Freezes an instance once its whole ``__init__`` (subclass included) has run."""
+
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        obj = super().__call__(*args, **kwargs)
+        object.__setattr__(obj, "_frozen", True)
+        return obj
+
+
+class LandingTask(metaclass=_FrozenAfterInit):
+    """Contract of a landing task (see the module docstring); subclasses implement it.
+
+    The constructor sets the shared constants below from a scenario and validated
+    :class:`StepSettings`; the subclass then sets ``r_stop_nd``, ``action_space``,
+    ``observation_space`` and whatever its own methods need.
+
+    Attributes
+    ----------
+    model : lunar_env.integrators model
+        Dynamics model (class attribute): ``n_state``, ``n_control`` and the compiled RHS.
+    has_target : bool
+        True for a pinpoint task: a miss distance is part of the verdict and the info.
+    charge_propellant_on_failure : bool
+        A failed landing is also charged the propellant left (pinpoint v1/v2).
+    gate_range_m : float or None
+        Great-circle distance from the target (m) within which the terminal gate counts; None:
+        the terminal radius ``r_stop_nd`` counts everywhere (then :meth:`stop_radius` and
+        :meth:`below_gate_in_zone` are never called by the step, which saves their cost).
+    scenario : object
+        The frozen scenario flown (vehicle, body, initial state and its dispersion).
+    settings : StepSettings
+        The validated shared settings; ``dt_s`` ... ``success_miss_m`` read from it.
+    scaling : lunar_env.Scaling
+        SI <-> normalised conversion of the scenario.
+    params, params_array :
+        Normalised model parameters (dataclass, and the flat array the kernel takes).
+    dt_nd, h_nd : float
+        Env step and RK4 step, normalised time.
+    n_fall : int
+        RK4 steps of the longest free fall (``max_fall_s``).
+    dry_mass_nd : float
+        Dry mass (normalised): the burn ends there.
+    r_stop_nd : float
+        Terminal radius (normalised): the surface (planar) or the gate sphere (pinpoint).
+    mass_ref_kg, time_ref_s, length_ref_m, velocity_ref_m_s : float
+        Normalisation units (kg, s, m, m/s).
+    propellant_ref_kg : float
+        Propellant capacity of the vehicle (kg): the fuel reward's unit.
+    prop_nominal_nd : float
+        Nominal propellant load (normalised mass): the observation's full fraction.
+    action_space, observation_space : gymnasium.spaces.Box
+        float32 spaces of one lander.
+    """
+
+    model: Any
+    has_target: bool = False
+    charge_propellant_on_failure: bool = False
+    gate_range_m: float | None = None
+    r_stop_nd: float
+    action_space: spaces.Box
+    observation_space: spaces.Box
+
+    def __init__(self, scenario: Any, settings: StepSettings) -> None:
+        self.scenario = scenario
+        self.settings = settings
+        self.scaling = s = scenario.scaling()
+        self.params = scenario.params(s)
+        self.params_array = self.params.as_array()
+        self.dt_nd = float(s.time_nd(settings.dt_s))
+        self.h_nd = self.dt_nd / settings.substeps
+        self.n_fall = fall_steps(settings.max_fall_s, settings.dt_s / settings.substeps)
+        self.dry_mass_nd = float(s.mass_nd(scenario.vehicle.dry_mass_kg))
+        self.mass_ref_kg = s.mass_kg
+        self.time_ref_s = s.time_s
+        self.length_ref_m = s.length_m
+        self.velocity_ref_m_s = s.velocity_m_s
+        self.propellant_ref_kg = scenario.vehicle.mass_kg - scenario.vehicle.dry_mass_kg
+        self.prop_nominal_nd = float(s.mass_nd(scenario.vehicle.mass_kg)) - self.dry_mass_nd
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if self.__dict__.get("_frozen", False):
+            raise AttributeError(f"cannot set {type(self).__name__}.{name}: a task is frozen "
+                                 "after construction; make a new env with the setting instead")
+        object.__setattr__(self, name, value)
+
+    def __delattr__(self, name: str) -> None:
+        raise AttributeError(f"cannot delete {type(self).__name__}.{name}: a task is frozen")
+
+    # -- settings (read-only views of ``settings``) ------------------------------------------------
+    @property
+    def dt_s(self) -> float:
+        """Decision interval (s)."""
+        return self.settings.dt_s
+
+    @property
+    def substeps(self) -> int:
+        """RK4 steps per env step."""
+        return self.settings.substeps
+
+    @property
+    def time_limit_s(self) -> float:
+        """Episode time limit (s)."""
+        return self.settings.time_limit_s
+
+    @property
+    def max_fall_s(self) -> float:
+        """Longest free fall integrated (s)."""
+        return self.settings.max_fall_s
+
+    @property
+    def throttle_channel(self) -> bool:
+        """The action has a throttle channel."""
+        return self.settings.throttle_channel
+
+    @property
+    def success_speed_m_s(self) -> float:
+        """Largest touchdown (gate) speed of a success (m/s)."""
+        return self.settings.success_speed_m_s
+
+    @property
+    def cutoff_speed_m_s(self) -> float:
+        """Speed minima at or below this cut the engine off (m/s)."""
+        return self.settings.cutoff_speed_m_s
+
+    @property
+    def success_miss_m(self) -> float:
+        """Largest miss distance of a success (m); inf without a target."""
+        return self.settings.success_miss_m
+
+    # -- maps -----------------------------------------------------------------------------------
+    @abc.abstractmethod
+    def controls_from_actions(self, a: np.ndarray) -> np.ndarray:
+        """Controls (B, model.n_control) (rad, throttle in [0, 1]) of validated finite actions
+        ``a`` (B, n_act) (clipped to [-1, 1] here)."""
+
+    @abc.abstractmethod
+    def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Observations (B, n_obs) float32 of states ``y`` (B, n_state) at times ``t_s`` (B,)
+        (s), scaled and clipped to the observation space."""
+
+    @abc.abstractmethod
+    def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
+        """SI quantities encoded in observations (B, n_obs): the inverse of
+        :meth:`observation` (exact inside its bounds); each value has shape (B,)."""
+
+    @abc.abstractmethod
+    def physical_constants(self) -> dict[str, float]:
+        """SI constants of the lander and the body that policies may use (derived features);
+        each key carries its unit."""
+
+    # -- geometry and verdict -------------------------------------------------------------------
+    @abc.abstractmethod
+    def speed_m_s(self, y: np.ndarray) -> np.ndarray:
+        """Speed relative to the surface (m/s), shape (B,): the engine cut-off watches it."""
+
+    @abc.abstractmethod
+    def altitude_m(self, y: np.ndarray) -> np.ndarray:
+        """Altitude (m) reported in ``info["altitude_m"]``, shape (B,)."""
+
+    @abc.abstractmethod
+    def landing_metrics(self, y: np.ndarray, touched_down: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Terminal speed (m/s) and miss distance (m; None without a target), each (B,), of
+        landers whose episode ends at states ``y``; ``touched_down`` (B,) bool says which
+        reached the terminal radius (the others are charged an estimate)."""
+
+    def stop_radius(self, y: np.ndarray) -> np.ndarray:
+        """Terminal radius (normalised) of each lander (B,) for the coming step. Called only
+        when ``gate_range_m`` is not None; this default is ``r_stop_nd`` everywhere."""
+        return np.full(len(y), self.r_stop_nd)
+
+    def below_gate_in_zone(self, y: np.ndarray) -> np.ndarray:
+        """(B,) bool: the lander ended the step where the gate counts but under it (its episode
+        ends there). Called only when ``gate_range_m`` is not None; this default: none."""
+        return np.zeros(len(y), dtype=bool)
+
+    # -- episodes and rendering -----------------------------------------------------------------
+    @abc.abstractmethod
+    def initial_state(self, rng: np.random.Generator, options: dict | None) -> np.ndarray:
+        """Normalised initial state (n_state,): drawn from the scenario's dispersion with
+        ``rng``, or pinned by ``options`` (``state_nd``, ``state_si``, ``nominal``).
+
+        Raises
+        ------
+        ValueError
+            If the state is not finite, starts below ``r_stop_nd`` or without propellant.
+        """
+
+    @abc.abstractmethod
+    def track(self, ys: np.ndarray) -> dict:
+        """What the renderer draws of states ``ys`` (T, n_state): at least ``downrange_km``
+        and ``altitude_km`` (T,)."""
+
+
+def box(low, high) -> spaces.Box:
+    """float32 Box from bound lists."""
+    return spaces.Box(np.asarray(low, dtype=np.float32), np.asarray(high, dtype=np.float32),
+                      dtype=np.float32)
