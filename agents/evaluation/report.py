@@ -18,9 +18,10 @@ def _fmt(x: float, spec: str) -> str:
 
 def markdown_table(report: dict[str, Any]) -> str:
     """The comparison as a Markdown table (one row per policy)."""
-    pinpoint = any(math.isfinite(r["miss_distance_mean_m"]) for r in report["rows"])
+    # a miss-distance column where some law reports one (an env with a landing target)
+    has_miss = any(math.isfinite(r["miss_distance_mean_m"]) for r in report["rows"])
     head = ["policy", "cases", "success %", "touchdown speed mean / p95 (m/s)"]
-    if pinpoint:
+    if has_miss:
         head.append("miss mean (m)")
     head += ["fuel mean (kg)", "gap to optimum (%)", "final-time gap (%)", "µs / decision"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -28,7 +29,7 @@ def markdown_table(report: dict[str, Any]) -> str:
         cells = [r["policy"], str(r["n_cases"]), _fmt(100 * r["success_rate"], ".1f"),
                  f"{_fmt(r['touchdown_speed_mean_m_s'], '.2f')} / "
                  f"{_fmt(r['touchdown_speed_p95_m_s'], '.2f')}"]
-        if pinpoint:
+        if has_miss:
             cells.append(_fmt(r["miss_distance_mean_m"], ".0f"))
         cells += [_fmt(r["fuel_mean_kg"], ".2f"), _fmt(r.get("fuel_gap_pct"), "+.2f"),
                   _fmt(r.get("final_time_gap_pct", float("nan")), "+.2f"),
