@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 import pytest
-from proc_helpers import python, wait_for
+from proc_helpers import kill_point, kill_seed, noted, python, wait_for
 
 # ------------------------------------------------------------------------------------- optimisers
 
@@ -23,35 +23,38 @@ _ASAGA_CLI = """
 """
 
 
-def _kill_and_resume_asaga(tmp_path, n_gen, rng):
+def _kill_and_resume_asaga(tmp_path, n_gen, kseed):
     from optimizers.evolutionary.asaga import ASAGA
     from optimizers.problems.landing import PlanarLandingProblem
 
     ck = tmp_path / "asaga.pkl"
+    delay = random.Random(kseed).uniform(0.0, 0.3)
+    where = kill_point("the first ASAGA checkpoint", kseed, delay)
     proc = python(_ASAGA_CLI, str(ck), str(n_gen))
     try:
         wait_for(ck.exists, 300, proc)
-        time.sleep(rng.uniform(0.0, 0.3))
+        time.sleep(delay)
         proc.send_signal(signal.SIGKILL)
     finally:
         proc.kill()
         proc.wait()
-    problem = PlanarLandingProblem()
-    resumed = ASAGA(n_generations=n_gen).solve(problem, seed=5, checkpoint=ck)
-    full = ASAGA(n_generations=n_gen).solve(problem, seed=5)
-    np.testing.assert_array_equal(resumed.x, full.x)
-    np.testing.assert_array_equal(resumed.history, full.history)
-    assert resumed.n_fevals == full.n_fevals and resumed.success == full.success
+    with noted(where):
+        problem = PlanarLandingProblem()
+        resumed = ASAGA(n_generations=n_gen).solve(problem, seed=5, checkpoint=ck)
+        full = ASAGA(n_generations=n_gen).solve(problem, seed=5)
+        np.testing.assert_array_equal(resumed.x, full.x)
+        np.testing.assert_array_equal(resumed.history, full.history)
+        assert resumed.n_fevals == full.n_fevals and resumed.success == full.success
 
 
 def test_optimiser_killed_at_a_random_point_resumes(tmp_path):
-    _kill_and_resume_asaga(tmp_path, 30, random.Random())
+    _kill_and_resume_asaga(tmp_path, 30, kill_seed(18))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("trial", range(5))
 def test_optimiser_killed_at_random_points_slow(tmp_path, trial):
-    _kill_and_resume_asaga(tmp_path, 80, random.Random(trial))
+    _kill_and_resume_asaga(tmp_path, 80, trial)
 
 
 def test_damaged_optimiser_checkpoint_is_named(tmp_path):

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 import pytest
-from proc_helpers import alive, children, python, wait_for
+from proc_helpers import alive, children, kill_point, kill_seed, noted, python, wait_for
 
 # --------------------------------------------------------------------------------------- datasets
 
@@ -67,12 +67,14 @@ _DATASET_CLI = """
 """
 
 
-def _kill_and_resume_dataset(tmp_path, reference, n, rng):
+def _kill_and_resume_dataset(tmp_path, reference, n, kseed):
     from agents.imitation.dataset import generate
 
     out = tmp_path / "killed.npz"
+    delay = random.Random(kseed).uniform(0.0, 0.5)
+    where = kill_point("the first dataset shard", kseed, delay)
     proc = python(_DATASET_CLI, "--n", str(n), "--shard-size", "1", "--workers", "2",
-                   "--n-steps", "200", "--out", str(out), "--no-progress")
+                  "--n-steps", "200", "--out", str(out), "--no-progress")
     shards = out.with_name(out.name + ".shards")
     workers: set[int] = set()
     try:
@@ -80,29 +82,30 @@ def _kill_and_resume_dataset(tmp_path, reference, n, rng):
             workers.update(children(proc.pid))
             return any(shards.glob("shard_*.npz"))
         wait_for(started, 300, proc)
-        time.sleep(rng.uniform(0.0, 0.5))
+        time.sleep(delay)
         workers.update(children(proc.pid))
         proc.send_signal(signal.SIGKILL)
     finally:
         proc.kill()
         proc.wait()
-    assert workers, "the dataset run started no worker process"
-    # item 10: the workers end with their parent (no orphans left computing or waiting)
-    wait_for(lambda: not any(alive(p) for p in workers), 30)
-    timing = json.loads((shards / "timing.json").read_text())
-    assert timing and timing[0]["new_shards"] >= 1  # the killed session is recorded
-    n_missing = n - len(list(shards.glob("shard_*.npz")))
-    generate(out, n=n, shard_size=1, n_workers=1, progress=False, n_steps=200)
-    _assert_same_dataset(out, reference)
-    timing = json.loads((shards / "timing.json").read_text())
-    # the killed session keeps its record (a kill between a shard's rename and the timing
-    # update can leave that one shard uncounted); the resumed one solved only what was missing
-    assert len(timing) == 2 and timing[1]["new_shards"] == n_missing
-    assert n - 1 <= sum(t["new_shards"] for t in timing) <= n
+    with noted(where):
+        assert workers, "the dataset run started no worker process"
+        # item 10: the workers end with their parent (no orphans left computing or waiting)
+        wait_for(lambda: not any(alive(p) for p in workers), 30)
+        timing = json.loads((shards / "timing.json").read_text())
+        assert timing and timing[0]["new_shards"] >= 1  # the killed session is recorded
+        n_missing = n - len(list(shards.glob("shard_*.npz")))
+        generate(out, n=n, shard_size=1, n_workers=1, progress=False, n_steps=200)
+        _assert_same_dataset(out, reference)
+        timing = json.loads((shards / "timing.json").read_text())
+        # the killed session keeps its record (a kill between a shard's rename and the timing
+        # update can leave that one shard uncounted); the resumed one solved only what was missing
+        assert len(timing) == 2 and timing[1]["new_shards"] == n_missing
+        assert n - 1 <= sum(t["new_shards"] for t in timing) <= n
 
 
 def test_dataset_killed_at_a_random_point_resumes(reference_dataset, tmp_path):
-    _kill_and_resume_dataset(tmp_path, reference_dataset, 3, random.Random())
+    _kill_and_resume_dataset(tmp_path, reference_dataset, 3, kill_seed(18))
 
 
 @pytest.mark.slow
@@ -112,4 +115,4 @@ def test_dataset_killed_at_random_points_slow(tmp_path, trial):
 
     ref = tmp_path / "ref.npz"
     generate(ref, n=8, shard_size=1, n_workers=1, progress=False, n_steps=200)
-    _kill_and_resume_dataset(tmp_path, ref, 8, random.Random(trial))
+    _kill_and_resume_dataset(tmp_path, ref, 8, trial)
