@@ -114,8 +114,16 @@ def test_pinpoint_scenario_every_dispersed_start_resets():
     wide = dataclasses.replace(peng, dispersion=PinpointDispersion(
         altitude_m=(-12_000.0, 0.0), mass_kg=(-290.0, 0.0)))
     env = gym.make(PIN, scenario=wide)
+    alt0, m0 = wide.initial.altitude_m, wide.initial.mass_kg
+    dry = wide.vehicle.dry_mass_kg
     for seed in range(200):
-        env.reset(seed=seed)
+        obs, info = env.reset(seed=seed)
+        assert obs in env.observation_space and np.all(np.isfinite(obs)), seed
+        # the start is the dispersed one: altitude and mass inside the ranges, above the dry mass
+        assert alt0 - 12_000.0 - 1e-6 <= info["altitude_m"] <= alt0 + 1e-6, (seed, info)
+        mass_kg = env.unwrapped.state_nd[6] * m0
+        assert dry < m0 - 290.0 - 1e-6 <= mass_kg <= m0 + 1e-6, (seed, mass_kg)
+        assert info["fuel_used_kg"] == 0.0 and not info["is_success"], (seed, info)
 
 
 # ------------------------------------------------------ env arguments and reset options (item 10)
