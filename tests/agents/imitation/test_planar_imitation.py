@@ -8,12 +8,10 @@ import json
 import numpy as np
 import pytest
 
-pytest.importorskip("stable_baselines3")
-
-from agents.imitation import cli as im  # noqa: E402
-from agents.imitation import data as dsm_data  # noqa: E402
-from agents.imitation import dataset as dsm  # noqa: E402
-from agents.imitation.policy import build_model  # noqa: E402
+from agents.imitation import cli as im
+from agents.imitation import data as dsm_data
+from agents.imitation import dataset as dsm
+from agents.imitation.policy import build_model
 
 ENV_ID = "LunarSoftLanding-v0"
 

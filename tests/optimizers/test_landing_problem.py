@@ -146,7 +146,8 @@ def test_final_mass_objective_matches_fuel(problem):
 
 
 def test_pygmo_algorithms_solve_our_problem(problem):
-    pg = pytest.importorskip("pygmo")
+    import pygmo as pg
+
     pen = PenalisedProblem(problem)
     prob = pen.to_pygmo()
     pop = pg.population(prob, size=20, seed=1)

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
+import optuna
 import pytest
 
-pytest.importorskip("optuna")
-
-from agents.hyperparams import load_hyperparams  # noqa: E402
-from agents.rl.search import score  # noqa: E402
-from agents.train import main  # noqa: E402
+from agents.hyperparams import load_hyperparams
+from agents.rl.search import score
+from agents.train import main
 
 
 def test_score_orders_landings_fuel_and_crashes():
@@ -37,7 +36,6 @@ def test_optimize_quick_writes_best_entry_and_resumes(tmp_path, capsys):
     assert "curriculum" in best  # the base entry's run keys are kept
     table = (out / "trials.md").read_text()
     assert table.count("COMPLETE") + table.count("PRUNED") == 2
-    import optuna
 
     from agents.rl.search import make_storage
 

@@ -107,7 +107,8 @@ def test_seeded_deterministic_and_resume(tmp_path):
 
 
 def test_pygmo_uda():
-    pg = pytest.importorskip("pygmo")
+    import pygmo as pg
+
     p = ThrustDesignProblem()
     pop = pg.population(p.to_pygmo(), size=20, seed=1)
     algo = FGA(n_generations=30)

@@ -174,7 +174,8 @@ def test_trajectory_on_request_and_progress(problem, capsys):
 
 
 def test_pygmo_uda(problem):
-    pg = pytest.importorskip("pygmo")
+    import pygmo as pg
+
     algo = pg.algorithm(ASAGA(n_generations=5))
     pop = pg.population(problem.to_pygmo(), size=20, seed=2)
     pop = algo.evolve(pop)

@@ -45,8 +45,6 @@ def test_quick_reproduction_json_structure(tmp_path):
 
 
 def test_shooting_solution_lands_in_env():
-    pytest.importorskip("lunar_env.envs.pinpoint_landing",
-                        reason="LunarPinpointLanding-v0 not available")
     ocp = PinpointOCP(get_scenario("peng2012"))
     res = solve_serial(ocp, form="lifted", n_rk4_per_segment=4)
     assert res.success

@@ -144,7 +144,8 @@ def test_aga_short_run_and_resume(problem, tmp_path):
 
 
 def test_pygmo_uda(problem):
-    pg = pytest.importorskip("pygmo")
+    import pygmo as pg
+
     pop = pg.population(problem.to_pygmo(), size=10, seed=2)
     pop = pg.algorithm(GAIA(n_pop=10, n_generations=2, n_clones=2)).evolve(pop)
     assert len(pop) == 10 and np.all(np.isfinite(pop.get_f()))

@@ -139,7 +139,8 @@ def ray_cluster(tmp_path, monkeypatch):
     Token authentication is off for this private test cluster, in the head and in the driver
     alike: with it on, another Ray instance started meanwhile by the same user (a study, a
     benchmark) can rewrite the shared ``~/.ray/auth_token`` and the driver is refused."""
-    pytest.importorskip("ray")
+    import ray  # noqa: F401  (the [test] extra: a missing Ray fails, not skips)
+
     monkeypatch.setenv("RAY_AUTH_MODE", "disabled")
     ray_bin = Path(sys.executable).with_name("ray")
     port = _free_port()

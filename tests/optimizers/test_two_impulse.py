@@ -104,7 +104,8 @@ def test_ea_is_deterministic_and_resumes_from_a_checkpoint(tmp_path):
 
 
 def test_ea_as_pygmo_uda():
-    pg = pytest.importorskip("pygmo")
+    import pygmo as pg
+
     p = TwoImpulseProblem(3.0, "interception")
     pop = pg.population(p.to_pygmo(), size=50, seed=1)
     algo = pg.algorithm(EA(n_generations=10, stall_generations=100))
