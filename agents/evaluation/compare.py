@@ -47,12 +47,12 @@ from typing import Any
 
 import numpy as np
 
+from agents.common.families import family_of
 from agents.common.law import GuidanceLaw, law_label
 from agents.common.rollout import fly, make_vec
 from agents.common.sb3_law import SB3Law
 from agents.evaluation.report import markdown_table, write_report
 from agents.evaluation.result import PolicyResult
-from agents.experts.registry import family_of
 
 __all__ = ["PolicyResult", "initial_states", "rollout", "compare", "evaluate_run",
            "DEFAULT_ENV_ID", "DEFAULT_N_STATES", "DEFAULT_SEED"]

@@ -71,7 +71,7 @@ def plot_comparison(report: dict[str, Any], path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from agents.experts.registry import family_of
+    from agents.common.families import family_of
 
     scenario = report["scenario"]
     family = family_of(scenario)

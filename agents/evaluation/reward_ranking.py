@@ -72,10 +72,10 @@ def rank_strategies(env_id: str = "LunarPinpointLanding-v2", *, n_random: int = 
     import gymnasium as gym
 
     import lunar_env  # noqa: F401
+    from agents.common.families import family_of
     from agents.common.law import FlightComputer
     from agents.experts.pinpoint.expert import PinpointPontryaginExpert
     from agents.experts.pinpoint.family import PinpointFamily
-    from agents.experts.registry import family_of
     from agents.rl.shaping import resolve_success_bonus
     from lunar_env.envs.pinpoint_landing import action_from_angles, angles_from_action
     from optimizers.reproduce.peng2012 import get_solver

@@ -3,9 +3,9 @@
 An env family is a kind of landing problem with its own state, optimum and expert: the planar
 soft landing (:mod:`agents.experts.planar`) and the 3D pinpoint landing
 (:mod:`agents.experts.pinpoint`). Code outside the family modules asks
-:func:`agents.experts.registry.family_of` for the family of a scenario and calls its methods; it
+:func:`agents.common.families.family_of` for the family of a scenario and calls its methods; it
 never branches on the family itself. A new family (a throttled vehicle, another body) is one
-new module with an :class:`EnvFamily` subclass, registered in :mod:`agents.experts.registry`.
+new module with an :class:`EnvFamily` subclass, registered in :mod:`agents.common.families`.
 """
 
 from __future__ import annotations

@@ -13,9 +13,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from agents.common.families import family_of
 from agents.common.runs import save_model_atomic, write_text_atomic
 from agents.experts.family import DaggerRequest
-from agents.experts.registry import family_of
 from agents.imitation.bc import _logger, _save_final, train_bc
 from agents.imitation.policy import (
     build_model,

@@ -76,9 +76,9 @@ from typing import Any
 
 import numpy as np
 
+from agents.common.families import family_of
 from agents.common.runs import write_text_atomic
 from agents.experts.flights import make_env
-from agents.experts.registry import family_of
 from agents.imitation.data import (
     FORMAT_VERSION,
     OPTIONAL_PER_TRAJECTORY_KEYS,

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
-from agents.experts.registry import family_of
+from agents.common.families import family_of
 
 __all__ = ["OptimalStartCurriculum", "optimal_start_pool"]
 

@@ -266,7 +266,7 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
 
     if not isinstance(get_scenario(scenario_name), PlanarScenario):
         raise ValueError(f"scenario {scenario_name!r} is not a planar scenario: its DAgger data "
-                         "comes from its own family (agents.experts.registry.family_of)")
+                         "comes from its own family (agents.common.families.family_of)")
     jobs_eps = []
     for ep in episodes:
         t = ep["t_s"]

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from agents.common.families import FAMILIES, family_of
 from agents.common.law import GuidanceLaw
 from agents.experts.family import PerCaseOptimum
 from agents.experts.pinpoint.expert import PinpointPontryaginExpert
 from agents.experts.pinpoint.family import PinpointFamily
 from agents.experts.planar.expert import PlanarOpenLoopLaw, PlanarReplanningLaw
 from agents.experts.planar.family import PlanarFamily
-from agents.experts.registry import FAMILIES, family_of
 from lunar_env import get_scenario
 
 

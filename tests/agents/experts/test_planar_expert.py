@@ -73,9 +73,9 @@ def test_expert_bad_input_raises(scenario):
 def test_dataset_recipes_of_both_families():
     """Each family answers what its imitation dataset is made of (rows, names, tolerances,
     label rule, a module-level shard task), and refuses options it does not take."""
+    from agents.common.families import family_of
     from agents.experts.family import DatasetRecipe
     from agents.experts.flights import make_env
-    from agents.experts.registry import family_of
     from optimizers.common.executor import check_importable
 
     opts = {"n_steps": 200, "check": "grid", "tol_radius_m": None, "tol_speed_m_s": None}
