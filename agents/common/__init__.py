@@ -1,3 +1,3 @@
 """Shared pieces of the agents rooms: run directories, the rollout loop, the SB3 vec-env adapter,
-observation features and the guidance-law contract.
+observation features, the env-family registry and the guidance-law contract.
 """

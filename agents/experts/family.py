@@ -11,7 +11,7 @@ new module with an :class:`EnvFamily` subclass, registered in :mod:`agents.commo
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -214,6 +214,30 @@ class EnvFamily(ABC):
     def plot_flight(self, ax_trajectory, ax_control, trace: dict[str, np.ndarray], scenario,
                     label: str) -> None:
         """Draw one flown case (``trace``: ``t_s``, ``state_nd``, ``action``)."""
+
+    @abstractmethod
+    def feature_widths(self) -> dict[str, int]:
+        """The observation features the family defines (YAML ``obs_features``): name -> number
+        of columns it appends, in the order of the names."""
+
+    def feature_constants(self, env) -> dict[str, Any]:
+        """What the family's features need from ``env`` (an env, native vector env or flight
+        computer) besides its ``physical_constants()`` and decoding (none by default)."""
+        return {}
+
+    @abstractmethod
+    def augment_observation(self, obs: np.ndarray, consts: dict[str, Any],
+                            names: Sequence[str]) -> np.ndarray:
+        """The observations (B, n_obs) with the features ``names`` (at least one) appended,
+        float32 (``consts``: :func:`agents.common.features.feature_constants` of the env)."""
+
+    @abstractmethod
+    def feature_bounds(self, names: Sequence[str]) -> tuple[list[float], list[float]]:
+        """Lower and upper bounds of the columns the features ``names`` append."""
+
+    @abstractmethod
+    def shaping_potentials(self) -> tuple[str, ...]:
+        """The reward-shaping potentials (:mod:`agents.rl.shaping`) that fit the family's envs."""
 
     #: axis labels of the evaluation plots: (trajectory x, trajectory y, control y)
     plot_labels: tuple[str, str, str] = ("", "altitude (km)", "")

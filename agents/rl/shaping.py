@@ -49,13 +49,14 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
 
+from agents.common.families import family_named
 from agents.common.features import feature_constants
 from lunar_env.validation import require_number
 
 __all__ = ["PotentialShaping", "resolve_success_bonus", "surface_speed_m_s"]
 
+#: every potential; which of them fit an env, its family says (``shaping_potentials()``)
 POTENTIALS = ("surface_speed", "gate_speed_and_range")
-_PINPOINT_POTENTIALS = ("gate_speed_and_range",)
 
 
 def gate_speed_and_range(obs: np.ndarray, consts: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -111,9 +112,8 @@ class PotentialShaping(VecEnvWrapper):
         if native is None:
             raise TypeError("PotentialShaping needs a LanderSB3VecEnv of LunarSoftLanding-v0")
         self.consts = feature_constants(native)
-        pinpoint = bool(self.consts.get("pinpoint"))
-        if pinpoint != (potential in _PINPOINT_POTENTIALS):
-            allowed = _PINPOINT_POTENTIALS if pinpoint else ("surface_speed",)
+        allowed = tuple(family_named(self.consts["family"]).shaping_potentials())
+        if potential not in allowed:
             raise ValueError(f"potential={potential!r} does not fit this env: use one of "
                              f"{allowed}")
         self.surface_radius_m = float(getattr(native.scenario, "surface_radius_m", np.nan))

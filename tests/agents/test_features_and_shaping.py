@@ -6,7 +6,6 @@ import yaml
 
 from agents import train as tr
 from agents.common.features import (
-    FEATURE_WIDTHS,
     ObsFeatureWrapper,
     augment_observation,
     feature_constants,
@@ -15,10 +14,11 @@ from agents.common.features import (
 from agents.common.sb3_law import SB3Law
 from agents.common.vec_env import make_sb3_vec_env
 from agents.evaluation.compare import rollout
+from agents.experts.planar.features import PLANAR_FEATURE_WIDTHS
 from agents.rl.shaping import PotentialShaping, surface_speed_m_s
 
 ENV_ID = "LunarSoftLanding-v0"
-ALL = list(FEATURE_WIDTHS)
+ALL = list(PLANAR_FEATURE_WIDTHS)
 
 
 def _env():
@@ -35,7 +35,7 @@ def test_features_finite_on_the_whole_observation_box():
     obs[:8] = lo  # corners: zero altitude, zero propellant, extreme speeds
     obs[8:16] = hi
     out = augment_observation(obs, consts, ALL)
-    assert out.shape == (4000, 5 + sum(FEATURE_WIDTHS.values()))
+    assert out.shape == (4000, 5 + sum(PLANAR_FEATURE_WIDTHS.values()))
     assert np.isfinite(out).all()
     np.testing.assert_array_equal(out[:, :5], obs.astype(np.float32))
 

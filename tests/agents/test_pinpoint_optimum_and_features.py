@@ -70,13 +70,9 @@ def test_bad_inputs(scenario, tmp_path):
 
 
 def test_pinpoint_features_decode_and_shaping():
-    from agents.common.features import (
-        PINPOINT_FEATURE_WIDTHS,
-        ObsFeatureWrapper,
-        augment_observation,
-        feature_constants,
-    )
+    from agents.common.features import ObsFeatureWrapper, augment_observation, feature_constants
     from agents.common.vec_env import make_sb3_vec_env
+    from agents.experts.pinpoint.features import PINPOINT_FEATURE_WIDTHS
     from agents.rl.shaping import PotentialShaping, gate_speed_and_range
     from lunar_env import dynamics as dyn
 

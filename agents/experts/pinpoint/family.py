@@ -11,6 +11,12 @@ from agents.common.law import GuidanceLaw
 from agents.experts.family import DaggerRequest, DatasetRecipe, EnvFamily, PerCaseOptimum
 from agents.experts.pinpoint.data import pinpoint_dagger_iteration, pinpoint_dataset_recipe
 from agents.experts.pinpoint.expert import PinpointPontryaginExpert
+from agents.experts.pinpoint.features import (
+    PINPOINT_FEATURE_WIDTHS,
+    augment_pinpoint,
+    pinpoint_feature_bounds,
+    pinpoint_feature_constants,
+)
 from agents.experts.pinpoint.optimum import PinpointOpenLoopLaw, pinpoint_optima
 from lunar_env.scenarios import PinpointScenario
 from lunar_env.validation import require_number, require_option_keys
@@ -127,6 +133,24 @@ class PinpointFamily(EnvFamily):
                          ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
         """See :func:`agents.experts.pinpoint.data.pinpoint_dagger_iteration`."""
         return pinpoint_dagger_iteration(scenario, request)
+
+    def feature_widths(self) -> dict[str, int]:
+        """See :func:`agents.experts.pinpoint.features.augment_pinpoint`."""
+        return dict(PINPOINT_FEATURE_WIDTHS)
+
+    def feature_constants(self, env) -> dict:
+        """The scenario and the observation map (the ``reference_profile`` feature)."""
+        return pinpoint_feature_constants(env)
+
+    def augment_observation(self, obs, consts, names) -> np.ndarray:
+        """See :func:`agents.experts.pinpoint.features.augment_pinpoint`."""
+        return augment_pinpoint(obs, consts, names)
+
+    def feature_bounds(self, names) -> tuple[list[float], list[float]]:
+        return pinpoint_feature_bounds(names)
+
+    def shaping_potentials(self) -> tuple[str, ...]:
+        return ("gate_speed_and_range",)
 
     def plot_optimum(self, ax_trajectory, ax_control, solution, scenario) -> None:
         s = scenario.scaling()

@@ -11,6 +11,11 @@ from agents.common.law import GuidanceLaw
 from agents.experts.family import DaggerRequest, DatasetRecipe, EnvFamily, PerCaseOptimum
 from agents.experts.planar.data import planar_dagger_iteration, planar_dataset_recipe
 from agents.experts.planar.expert import PlanarOpenLoopLaw, PlanarReplanningLaw, planar_state_si
+from agents.experts.planar.features import (
+    PLANAR_FEATURE_WIDTHS,
+    augment_planar,
+    planar_feature_bounds,
+)
 from lunar_env.envs.soft_landing import thrust_angle_from_action
 from lunar_env.scenarios import PlanarScenario
 from optimizers.indirect.batch import solve_many
@@ -73,6 +78,20 @@ class PlanarFamily(EnvFamily):
                          ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
         """See :func:`agents.experts.planar.data.planar_dagger_iteration`."""
         return planar_dagger_iteration(scenario, request)
+
+    def feature_widths(self) -> dict[str, int]:
+        """See :mod:`agents.experts.planar.features`."""
+        return dict(PLANAR_FEATURE_WIDTHS)
+
+    def augment_observation(self, obs, consts, names) -> np.ndarray:
+        """See :func:`agents.experts.planar.features.augment_planar`."""
+        return augment_planar(obs, consts, names)
+
+    def feature_bounds(self, names) -> tuple[list[float], list[float]]:
+        return planar_feature_bounds(names)
+
+    def shaping_potentials(self) -> tuple[str, ...]:
+        return ("surface_speed",)
 
     def plot_optimum(self, ax_trajectory, ax_control, solution, scenario) -> None:
         r_surf = scenario.surface_radius_m

@@ -61,3 +61,21 @@ def test_start_noise_exists_only_where_the_family_defines_it():
     with pytest.raises(ValueError, match="planar"):
         family_of(get_scenario("zhu2007")).start_noise_nd(get_scenario("zhu2007"),
                                                           {"position_m": 1.0})
+
+
+def test_the_registry_is_lazy_string_keyed_and_each_family_answers_its_features():
+    from agents.common.families import FAMILY_ENTRY_POINTS, family_named
+
+    assert tuple(FAMILY_ENTRY_POINTS) == FAMILIES == ("planar", "pinpoint")
+    assert family_named("planar") is family_of(get_scenario("zhu2007"))
+    with pytest.raises(KeyError, match="registered families"):
+        family_named("throttled")
+    for name in FAMILIES:
+        fam = family_named(name)
+        widths = fam.feature_widths()
+        lo, hi = fam.feature_bounds(list(widths))
+        assert len(lo) == len(hi) == sum(widths.values())
+        assert all(a < b for a, b in zip(lo, hi, strict=True))
+        assert len(fam.shaping_potentials()) == 1
+    assert family_named("planar").shaping_potentials() != family_named(
+        "pinpoint").shaping_potentials()
