@@ -69,8 +69,6 @@ class FlightComputer:
         Episode time limit (s).
     action_space : gymnasium.spaces.Box
         One lander's action space.
-    has_target : bool
-        A pinpoint task (a landing target and a miss distance).
     gate_range_m : float or None
         Pinpoint: the range to the target within which the gate counts (None: everywhere).
     constants : dict[str, float]
@@ -88,7 +86,6 @@ class FlightComputer:
     dt_s: float
     time_limit_s: float
     action_space: spaces.Box
-    has_target: bool
     gate_range_m: float | None
     constants: dict
     decode: Any
@@ -109,7 +106,6 @@ class FlightComputer:
         space = getattr(core, "single_action_space", None) or core.action_space
         return cls(env_id=env_id, scenario=core.scenario, dt_s=float(core.dt_s),
                    time_limit_s=float(core.time_limit_s), action_space=space,
-                   has_target=bool(core.has_target),
                    gate_range_m=core.gate_range_m,
                    constants=dict(core.physical_constants()),
                    decode=core.observation_quantities,

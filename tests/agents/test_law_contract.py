@@ -80,7 +80,7 @@ def test_an_ordinary_law_gets_the_flight_computer_and_navigation_only():
     fly(ENV_ID, law, 4, seed=3)
     comp = law.computer
     assert isinstance(comp, FlightComputer)
-    assert comp.env_id == ENV_ID and comp.dt_s > 0 and not comp.has_target
+    assert comp.env_id == ENV_ID and comp.dt_s > 0 and comp.gate_range_m is None
     assert comp.physical_constants()["thrust_n"] > 0
     np.testing.assert_array_equal(law.case_ids, np.arange(4))
     nav = law.calls[0]
