@@ -1,6 +1,6 @@
 """Shared settings. Tests run from a fresh clone; numba kernels compile on first use (cached).
 
-The default run uses two pytest-xdist workers (``addopts`` in pyproject.toml, ``--dist loadfile``).
+The default run uses two pytest-xdist workers (``addopts`` in pyproject.toml, ``--dist worksteal``).
 On 2 cores each worker keeps one BLAS/OpenMP thread (torch, numpy), unless the caller set them:
 two workers of two threads each on two cores only contend. Numba's on-disk cache needs no
 warm-up: a kernel that both workers compile first writes its index and data files through a
