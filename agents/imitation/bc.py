@@ -56,13 +56,9 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
     """
     import torch as th
 
-    from agents.imitation.data import load_dataset
+    from agents.imitation.data import load_run_dataset
 
-    ds = load_dataset(run["dataset"])
-    if ds.meta["env_id"] != run["env"]:
-        raise ValueError(f"dataset {run['dataset']} is for {ds.meta['env_id']!r}, not "
-                         f"{run['env']!r}")
-    env_kwargs = ds.meta.get("env_kwargs") or {}
+    ds, env_kwargs = load_run_dataset(run)
     bc = hp["bc"]
     seed = int(run["seed"])
     th.manual_seed(seed)

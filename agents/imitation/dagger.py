@@ -34,13 +34,9 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     import torch as th
     from stable_baselines3 import PPO
 
-    from agents.imitation.data import load_dataset
+    from agents.imitation.data import load_run_dataset
 
-    ds = load_dataset(run["dataset"])
-    if ds.meta["env_id"] != run["env"]:
-        raise ValueError(f"dataset {run['dataset']} is for {ds.meta['env_id']!r}, not "
-                         f"{run['env']!r}")
-    env_kwargs = ds.meta.get("env_kwargs") or {}
+    ds, env_kwargs = load_run_dataset(run)
     dg = hp["dagger"]
     seed = int(run["seed"])
     th.manual_seed(seed)

@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["FORMAT_VERSION", "ImitationDataset", "load_dataset", "save_dataset",
-           "PER_TRAJECTORY_KEYS", "OPTIONAL_PER_TRAJECTORY_KEYS", "PER_SAMPLE_KEYS"]
+__all__ = ["FORMAT_VERSION", "ImitationDataset", "load_dataset", "load_run_dataset",
+           "save_dataset", "PER_TRAJECTORY_KEYS", "OPTIONAL_PER_TRAJECTORY_KEYS", "PER_SAMPLE_KEYS"]
 
 FORMAT_VERSION = 1
 PER_TRAJECTORY_KEYS = ("initial_state_si", "solver_success", "fuel_kg", "tf_s",
@@ -131,3 +131,13 @@ def load_dataset(path: str | Path) -> ImitationDataset:
     if missing:
         raise ValueError(f"{path} lacks arrays {missing}")
     return ImitationDataset(meta, arrays)
+
+
+def load_run_dataset(run: dict[str, Any]) -> tuple[ImitationDataset, dict[str, Any]]:
+    """The dataset of an imitation run (``run["dataset"]``) and the env arguments it was made
+    with; ValueError if it was made for another env than ``run["env"]``."""
+    ds = load_dataset(run["dataset"])
+    if ds.meta["env_id"] != run["env"]:
+        raise ValueError(f"dataset {run['dataset']} is for {ds.meta['env_id']!r}, not "
+                         f"{run['env']!r}")
+    return ds, ds.meta.get("env_kwargs") or {}
