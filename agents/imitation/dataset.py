@@ -44,9 +44,12 @@ pinpoint_expert_flights`; ``--noise``).
 
 Parallel, progress, resume: the rows are split into shards of ``shard_size``; shards are tasks
 of :mod:`optimizers.common.executor` (a local process pool of ``--workers``, or a Ray cluster
-with ``--address`` / ``RAY_ADDRESS``), each written atomically to ``<out>.shards/shard_<k>.npz``.
+with ``--address`` / ``RAY_ADDRESS``), kept in an ``npz``
+:class:`optimizers.common.executor.ResultStore` at ``<out>.shards/`` (``results/<key>.npz``,
+one atomically written file per shard task key; ``identity.json``; ``timing.json``).
 A re-run with the same arguments skips finished shards (an interrupted run loses at most the
-shards in flight); the meta of the shard directory must match or the run refuses to mix data.
+shards in flight; a damaged shard is moved aside to ``.damaged`` and solved again); the
+identity of the store must match or the run refuses to mix data.
 The finished shards are merged into ``<out>``.
 
 File format (``FORMAT_VERSION`` = 1; ``numpy.savez_compressed``)
@@ -88,12 +91,18 @@ from agents.imitation.data import (
     load_dataset,
     save_dataset,
 )
-from agents.imitation.shards import read_shard, shard_done, shard_path, write_shard
 
 __all__ = ["generate", "DEFAULT_ENV_ID", "DEFAULT_OUT"]
 
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
 DEFAULT_OUT = "data/imitation/LunarSoftLanding-v0_n1000_seed0.npz"
+
+
+def _check_shard(arrays: dict) -> None:
+    """A shard read back must hold every per-trajectory and per-sample array."""
+    missing = [k for k in (*PER_TRAJECTORY_KEYS, *PER_SAMPLE_KEYS) if k not in arrays]
+    if missing:
+        raise ValueError(f"lacks {missing}")
 
 
 def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
@@ -166,32 +175,28 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         "observation_names": recipe.observation_names, "initial_states": recipe.initial_states,
     }
     shard_dir = out.with_name(out.name + ".shards")
-    shard_dir.mkdir(parents=True, exist_ok=True)
-    meta_file = shard_dir / "meta.json"
     key_meta = {k: meta[k] for k in ("format_version", "env_id", "env_kwargs", "scenario",
                                      "seed", "n_trajectories", "shard_size", "dt_s", "solver",
                                      "certification")}
-    if meta_file.exists():
-        old = json.loads(meta_file.read_text())
-        if old != json.loads(json.dumps(key_meta)):
-            raise ValueError(f"{shard_dir} holds shards made with other settings "
-                             f"({old}); delete it or choose another --out")
-    else:
-        write_text_atomic(meta_file, json.dumps(key_meta, indent=1))
+    from optimizers.common.executor import LocalExecutor, ResultStore, Task, TaskKey, run_tasks
+
+    # one file per shard, written atomically; other settings refused; damaged shards moved aside
+    store = ResultStore(shard_dir, identity=key_meta, fmt="npz", validate=_check_shard)
     n_shards = (int(n) + int(shard_size) - 1) // int(shard_size)
-    jobs = []
+    keys = [TaskKey(f"dataset-{sc.name}", int(seed), k) for k in range(n_shards)]
+    tasks = []
     done_before = 0
-    for k in range(n_shards):
+    for k, key in enumerate(keys):
         lo, hi = k * int(shard_size), min((k + 1) * int(shard_size), int(n))
-        if shard_done(shard_path(shard_dir, k)):
+        if key in store:
             done_before += hi - lo
-            continue
-        jobs.append({**recipe.job_args, "k": k, "rows": rows[lo:hi], "first_index": lo,
-                     "env_id": env_id, "env_kwargs": dict(env_kwargs or {}), "dt_s": dt_s,
-                     "tol_radius_m": tol_radius_m, "tol_speed_m_s": tol_speed_m_s,
-                     "seed": int(seed)})
+        job = {**recipe.job_args, "k": k, "rows": rows[lo:hi], "first_index": lo,
+               "env_id": env_id, "env_kwargs": dict(env_kwargs or {}), "dt_s": dt_s,
+               "tol_radius_m": tol_radius_m, "tol_speed_m_s": tol_speed_m_s, "seed": int(seed)}
+        tasks.append(Task(key, recipe.shard_fn, (job,)))
+    n_todo = n_shards - sum(1 for key in keys if store.path(key).exists())
     if max_shards is not None:
-        jobs = jobs[:int(max_shards)]
+        n_todo = min(n_todo, int(max_shards))
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -210,35 +215,27 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         session["wall_s"] = time.perf_counter() - t0
         write_text_atomic(timing_file, json.dumps(timing))
 
-    def _store(job, res):
-        wall = float(res.pop("wall_s"))
-        write_shard(shard_path(shard_dir, job["k"]), res, wall)
+    def _on_shard(task, res):  # after the store wrote it
         session["new_shards"] += 1
         _record_timing()
         if bar is not None:
-            bar.update(len(job["rows"]))
+            bar.update(len(task.args[0]["rows"]))
 
-    from optimizers.common.executor import LocalExecutor, Task, TaskKey, run_tasks
-
-    tasks = [Task(TaskKey(f"dataset-{sc.name}", int(seed), job["k"]), recipe.shard_fn,
-                  (job,))
-             for job in jobs]
-    by_k = {job["k"]: job for job in jobs}
     ex = executor
     if ex is None:
-        ex = LocalExecutor(0 if int(n_workers) == 1 or len(jobs) <= 1 else int(n_workers))
+        ex = LocalExecutor(0 if int(n_workers) == 1 or n_todo <= 1 else int(n_workers))
     session.update(n_workers=int(ex.n_workers), executor=ex.describe())
     try:
-        run_tasks(tasks, ex, on_result=lambda task, res: _store(by_k[task.key.index], res))
+        run_tasks(tasks, ex, store, on_result=_on_shard, max_tasks=max_shards)
     finally:
         if executor is None:
             ex.close()
         if bar is not None:
             bar.close()
     _record_timing()
-    if not all(shard_path(shard_dir, k).exists() for k in range(n_shards)):
+    if not all(store.path(key).exists() for key in keys):
         return None
-    parts = [read_shard(shard_path(shard_dir, k)) for k in range(n_shards)]
+    parts = [store.get(key) for key in keys]
     optional = [k for k in OPTIONAL_PER_TRAJECTORY_KEYS if all(k in p for p in parts)]
     arrays = {key: np.concatenate([p[key] for p in parts])
               for key in (*PER_TRAJECTORY_KEYS, *optional, *PER_SAMPLE_KEYS)}

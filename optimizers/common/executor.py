@@ -44,6 +44,8 @@ import os
 import pickle
 import re
 import time
+import zipfile
+import zlib
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
@@ -391,16 +393,25 @@ def get_executor(address: str | None = None, n_workers: int | None = None, **kwa
 class ResultStore:
     """Results on disk, one atomically written file per :class:`TaskKey`.
 
-    ``<directory>/results/<key.filename>.json`` (JSON values) or ``.pkl`` (anything picklable,
-    ``fmt="pickle"``); ``<directory>/identity.json`` records what the results belong to, and a
-    store opened with another identity is refused (results of other settings never mix).
+    ``<directory>/results/<key.filename>.json`` (JSON values), ``.pkl`` (anything picklable,
+    ``fmt="pickle"``) or ``.npz`` (dicts of numpy arrays, ``fmt="npz"``: compressed, read with
+    ``allow_pickle=False``); ``<directory>/identity.json`` records what the results belong to,
+    and a store opened with another identity is refused (results of other settings never mix).
+
+    Damaged files. :meth:`get` raises a ValueError naming the file of a damaged (truncated,
+    undecodable, or refused by ``validate``) entry. ``key in store`` (and :meth:`readable`)
+    is true only for an entry that reads: a damaged file is moved aside to ``<file>.damaged``
+    with a printed message naming it, so :func:`run_tasks` runs its task again.
 
     Parameters
     ----------
     directory : path
     identity : dict, optional
         JSON-serialisable description of the study (algorithm, settings, problem fingerprint).
-    fmt : {"json", "pickle"}
+    fmt : {"json", "pickle", "npz"}
+    validate : callable, optional
+        ``validate(value)`` raises ValueError if a value read back is incomplete (e.g. lacks a
+        required array); such an entry counts as damaged.
 
     Raises
     ------
@@ -408,12 +419,15 @@ class ResultStore:
         The directory holds a store of another identity (the message names the differing keys).
     """
 
+    _EXT = {"json": ".json", "pickle": ".pkl", "npz": ".npz"}
+
     def __init__(self, directory: str | os.PathLike, identity: dict | None = None,
-                 fmt: str = "json") -> None:
-        if fmt not in ("json", "pickle"):
-            raise ValueError(f"fmt = {fmt!r}; use 'json' or 'pickle'")
+                 fmt: str = "json", *, validate: Callable[[Any], None] | None = None) -> None:
+        if fmt not in self._EXT:
+            raise ValueError(f"fmt = {fmt!r}; use 'json', 'pickle' or 'npz'")
         self.directory = Path(directory)
         self.fmt = fmt
+        self.validate = validate
         self._dir = self.directory / "results"
         self._dir.mkdir(parents=True, exist_ok=True)
         ident_file = self.directory / "identity.json"
@@ -424,7 +438,8 @@ class ResultStore:
                 diff = sorted(k for k in set(old) | set(ident) if old.get(k) != ident.get(k))
                 if diff:
                     raise ValueError(
-                        f"{self.directory} holds results of another study (differs in "
+                        f"{self.directory} holds results of another study, made with other "
+                        "settings (differs in "
                         + "; ".join(f"{k}: stored {old.get(k)!r} vs {ident.get(k)!r}"
                                     for k in diff)
                         + "); use another output directory or delete it")
@@ -433,27 +448,89 @@ class ResultStore:
 
     @property
     def _ext(self) -> str:
-        return ".json" if self.fmt == "json" else ".pkl"
+        return self._EXT[self.fmt]
 
     def path(self, key: TaskKey) -> Path:
         return self._dir / (key.filename + self._ext)
 
     def __contains__(self, key: TaskKey) -> bool:
-        return self.path(key).exists()
+        return self.readable(key)
+
+    def readable(self, key: TaskKey) -> bool:
+        """True if ``key`` is stored and reads; a damaged file is moved aside (``.damaged``)
+        with a message naming it, and False returned (its task runs again)."""
+        return self._load(key) is not _MISSING
+
+    def _load(self, key: TaskKey) -> Any:
+        """The stored value, or ``_MISSING`` (absent, or damaged and moved aside)."""
+        path = self.path(key)
+        if not path.exists():
+            return _MISSING
+        try:
+            return self.get(key)
+        except ValueError as exc:
+            os.replace(path, path.with_name(path.name + ".damaged"))
+            print(f"{exc}: moved to {path.name}.damaged; its task runs again", flush=True)
+            return _MISSING
 
     def put(self, key: TaskKey, value: Any) -> Path:
-        """Store ``value`` under ``key`` atomically (JSON: NaN/inf allowed, as Python writes)."""
-        data = (json.dumps(value, default=_json_default).encode() if self.fmt == "json"
-                else pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL))
+        """Store ``value`` under ``key`` atomically (JSON: NaN/inf allowed, as Python writes;
+        npz: a dict of arrays)."""
+        if self.fmt == "json":
+            data = json.dumps(value, default=_json_default).encode()
+        elif self.fmt == "pickle":
+            data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+        else:
+            import io
+
+            import numpy as np
+
+            if not isinstance(value, dict):
+                raise TypeError(f"an npz store holds dicts of arrays; got {type(value).__name__}"
+                                f" for {key}")
+            buf = io.BytesIO()
+            np.savez_compressed(buf, **value)
+            data = buf.getvalue()
         return atomic_write_bytes(self.path(key), data)
 
     def get(self, key: TaskKey) -> Any:
-        raw = self.path(key).read_bytes()
-        return json.loads(raw) if self.fmt == "json" else pickle.loads(raw)
+        """The value stored under ``key``.
+
+        Raises
+        ------
+        FileNotFoundError
+            Nothing is stored under ``key``.
+        ValueError
+            The file is damaged (the message names it).
+        """
+        path = self.path(key)
+        raw = path.read_bytes()
+        try:
+            if self.fmt == "json":
+                value = json.loads(raw)
+            elif self.fmt == "pickle":
+                value = pickle.loads(raw)
+            else:
+                import io
+
+                import numpy as np
+
+                with np.load(io.BytesIO(raw), allow_pickle=False) as z:
+                    value = {f: z[f] for f in z.files}
+            if self.validate is not None:
+                self.validate(value)
+        except (ValueError, OSError, EOFError, KeyError, IndexError, TypeError, AttributeError,
+                pickle.UnpicklingError, zipfile.BadZipFile, zlib.error) as exc:
+            raise ValueError(f"stored result {path} is damaged ({type(exc).__name__}: {exc})"
+                             ) from None
+        return value
 
     def keys(self) -> list[str]:
         """File stems of the stored results (sorted)."""
         return sorted(p.name[:-len(self._ext)] for p in self._dir.glob("*" + self._ext))
+
+
+_MISSING = object()
 
 
 def _json_default(o):
@@ -497,10 +574,11 @@ def run_tasks(tasks: Iterable[Task], executor: Executor | None = None,
         Default: ``LocalExecutor(0)`` (this process).
     store : ResultStore, optional
         Keys already in it are skipped (resume) and new results are written to it atomically,
-        one by one, as they arrive.
+        one by one, as they arrive; a damaged stored file is moved aside and its task run
+        again (:meth:`ResultStore.readable`).
     on_result : callable, optional
-        ``on_result(task, result)`` after the result is stored (for stores of another kind,
-        e.g. dataset shards; runs in this process).
+        ``on_result(task, result)`` after the result is stored (progress, timing; runs in this
+        process).
     is_done : callable, optional
         ``is_done(key) -> bool``: extra resume test for callers with their own files.
     progress : bool or str
@@ -532,8 +610,9 @@ def run_tasks(tasks: Iterable[Task], executor: Executor | None = None,
     results: dict[TaskKey, Any] = {}
     todo = []
     for t in tasks:
-        if store is not None and t.key in store:
-            results[t.key] = store.get(t.key)
+        stored = _MISSING if store is None else store._load(t.key)
+        if stored is not _MISSING:
+            results[t.key] = stored
         elif is_done is not None and is_done(t.key):
             continue
         else:

@@ -70,6 +70,70 @@ def test_store_identity_refuses_other_study(tmp_path):
         ResultStore(tmp_path, {"algorithm": "GA", "n": 1})
 
 
+def test_npz_store_round_trip_and_resume(tmp_path):
+    """fmt="npz": dicts of arrays, compressed, read back without pickle; run_tasks skips them."""
+    store = ResultStore(tmp_path, {"study": "npz"}, fmt="npz")
+    key = TaskKey("p", 0, 3)
+    value = {"x": np.arange(6.0).reshape(2, 3), "ok": np.array([True, False]),
+             "t": np.array(1.5)}
+    path = store.put(key, value)
+    assert path.name == key.filename + ".npz" and key in store
+    got = store.get(key)
+    assert set(got) == set(value)
+    for k in value:
+        np.testing.assert_array_equal(got[k], value[k])
+        assert got[k].dtype == value[k].dtype
+    assert store.keys() == [key.filename]
+    res, rep = run_tasks([Task(key, pt.noop, (1,))], LocalExecutor(0), store)
+    assert (rep.n_skipped, rep.n_done) == (1, 0) and set(res[key]) == set(value)
+    with pytest.raises(TypeError, match="dicts of arrays"):
+        store.put(TaskKey("p", 0, 4), [1, 2])
+    with pytest.raises(ValueError, match="npz"):  # object arrays are refused on read
+        np.savez(store.path(TaskKey("p", 0, 5)), o=np.array([{}], dtype=object))
+        store.get(TaskKey("p", 0, 5))
+    with pytest.raises(ValueError, match="fmt"):
+        ResultStore(tmp_path / "other", fmt="csv")
+
+
+@pytest.mark.parametrize("fmt, value", [("npz", {"x": np.arange(50.0)}),
+                                        ("json", {"x": list(range(50))}),
+                                        ("pickle", {"x": list(range(50))})])
+def test_damaged_entry_is_named_moved_aside_and_run_again(tmp_path, capsys, fmt, value):
+    store = ResultStore(tmp_path, {"study": "damage"}, fmt=fmt)
+    key = TaskKey("p", 0, 1)
+    path = store.put(key, value)
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])  # truncated
+    with pytest.raises(ValueError, match=f"stored result {path} is damaged"):
+        store.get(key)
+    assert path.exists()  # get never moves anything
+    # membership moves it aside with a message, so the task runs again
+    assert key not in store
+    assert f"stored result {path} is damaged" in capsys.readouterr().out
+    damaged = path.with_name(path.name + ".damaged")
+    assert damaged.exists() and not path.exists() and not store.readable(key)
+    store.put(key, value)
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    res, rep = run_tasks([Task(key, pt.noop, (value,))], LocalExecutor(0), store)
+    assert (rep.n_skipped, rep.n_done) == (0, 1)  # run again, not read back
+    assert "is damaged" in capsys.readouterr().out
+    np.testing.assert_array_equal(store.get(key)["x"], value["x"])
+
+
+def test_store_validate_marks_incomplete_entries_damaged(tmp_path, capsys):
+    def need_y(v):
+        if "y" not in v:
+            raise ValueError("lacks ['y']")
+
+    store = ResultStore(tmp_path, fmt="npz", validate=need_y)
+    key = TaskKey("p", 0, 0)
+    store.put(key, {"x": np.zeros(2)})
+    with pytest.raises(ValueError, match=r"is damaged \(ValueError: lacks \['y'\]\)"):
+        store.get(key)
+    assert not store.readable(key) and store.path(key).with_suffix(".npz.damaged").exists()
+    store.put(key, {"x": np.zeros(2), "y": np.ones(1)})
+    assert key in store
+
+
 def test_get_executor_selection(monkeypatch):
     monkeypatch.delenv("RAY_ADDRESS", raising=False)
     ex = get_executor(None, 2)

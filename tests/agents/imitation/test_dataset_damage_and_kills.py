@@ -46,11 +46,14 @@ def test_damaged_dataset_shard_is_named_and_solved_again(reference_dataset, tmp_
 
     out = tmp_path / "d.npz"
     generate(out, n=3, shard_size=1, n_workers=1, progress=False, n_steps=200, max_shards=2)
-    shard = tmp_path / "d.npz.shards" / "shard_00001.npz"
+    # the shards are a ResultStore: results/<TaskKey filename>.npz, one per shard
+    shards = sorted((tmp_path / "d.npz.shards" / "results").glob("*.npz"))
+    assert [p.name[-10:] for p in shards] == ["000000.npz", "000001.npz"]
+    shard = shards[1]
     shard.write_bytes(shard.read_bytes()[: shard.stat().st_size // 2])
     generate(out, n=3, shard_size=1, n_workers=1, progress=False, n_steps=200)
-    assert f"dataset shard {shard} is damaged" in capsys.readouterr().out
-    assert shard.with_name(shard.name + ".damaged").exists()
+    assert f"stored result {shard} is damaged" in capsys.readouterr().out
+    assert shard.with_name(shard.name + ".damaged").exists() and shard.exists()
     _assert_same_dataset(out, reference_dataset)
     timing = json.loads((tmp_path / "d.npz.shards" / "timing.json").read_text())
     assert [t["new_shards"] for t in timing] == [2, 2]
@@ -80,7 +83,7 @@ def _kill_and_resume_dataset(tmp_path, reference, n, kseed):
     try:
         def started():
             workers.update(children(proc.pid))
-            return any(shards.glob("shard_*.npz"))
+            return any(shards.glob("results/*.npz"))
         wait_for(started, 300, proc)
         time.sleep(delay)
         workers.update(children(proc.pid))
@@ -94,7 +97,7 @@ def _kill_and_resume_dataset(tmp_path, reference, n, kseed):
         wait_for(lambda: not any(alive(p) for p in workers), 30)
         timing = json.loads((shards / "timing.json").read_text())
         assert timing and timing[0]["new_shards"] >= 1  # the killed session is recorded
-        n_missing = n - len(list(shards.glob("shard_*.npz")))
+        n_missing = n - len(list(shards.glob("results/*.npz")))
         generate(out, n=n, shard_size=1, n_workers=1, progress=False, n_steps=200)
         _assert_same_dataset(out, reference)
         timing = json.loads((shards / "timing.json").read_text())

@@ -86,10 +86,11 @@ def test_dataset_round_trip_and_version_check(small_dataset, tmp_path):
 
 def test_dataset_resume_skips_finished_shards(tmp_path):
     out = tmp_path / "r.npz"
-    shard0 = tmp_path / "r.npz.shards" / "shard_00000.npz"
     assert dsm.generate(out, n=4, seed=5, n_workers=1, shard_size=2, progress=False,
                         max_shards=1) is None  # "interrupted" after one shard
-    assert shard0.exists() and not out.exists()
+    # the shards are a ResultStore: results/<TaskKey filename>.npz
+    (shard0,) = (tmp_path / "r.npz.shards" / "results").glob("*.npz")
+    assert shard0.name.endswith("__seed5__000000.npz") and not out.exists()
     stat0 = shard0.stat()
     ds = dsm.generate(out, n=4, seed=5, n_workers=1, shard_size=2, progress=False)
     assert ds is not None and ds.n_trajectories == 4 and ds.arrays["certified"].all()
