@@ -15,6 +15,7 @@ import numpy as np
 from .. import dynamics as dyn
 from .. import integrators as integ
 from ..scenarios import PinpointScenario, get_scenario
+from ..validation import require_finite_positive
 from .base import LanderEnv, LanderVectorEnv
 from .task import LandingTask, StepSettings, box, float_array
 
@@ -124,7 +125,8 @@ class PinpointTask(LandingTask):
             dt_s=dt_s, substeps=substeps, time_limit_s=time_limit_s, max_fall_s=max_fall_s,
             throttle_channel=throttle_channel, success_speed_m_s=success_speed_m_s,
             cutoff_speed_m_s=cutoff_speed_m_s, default_time_limit_s=1.5 * sc.tf_bounds_s[1],
-            success_miss_m=success_miss_m)
+            # a pinpoint landing always has a miss criterion: None is refused, not read as inf
+            success_miss_m=require_finite_positive("success_miss_m", success_miss_m))
         super().__init__(sc, settings)
         s = self.scaling
         #: v1 reward: an episode that ends without success is also charged the propellant left
@@ -144,8 +146,6 @@ class PinpointTask(LandingTask):
         #: the gate radius); elsewhere the lander may fly below 2 km and ends at the surface
         #: (None: the gate sphere ends the episode everywhere, v0/v1)
         if gate_range_m is not None:
-            from lunar_env.validation import require_finite_positive
-
             self.gate_range_m = require_finite_positive("gate_range_m", gate_range_m)
             self._gate_cos = math.cos(self.gate_range_m / (self.r_stop_nd * s.length_m))
             self._target_unit = self.target_nd / np.linalg.norm(self.target_nd)

@@ -218,3 +218,12 @@ def test_fuzz_env_inputs_work_or_are_named():
 @pytest.mark.slow
 def test_fuzz_env_inputs_slow():
     _fuzz(3000)
+
+
+@pytest.mark.parametrize("env_id", [PIN, "LunarPinpointLanding-v2"])
+def test_pinpoint_success_miss_none_is_refused_by_name(env_id):
+    """A pinpoint landing always has a miss criterion: ``success_miss_m=None`` is refused, as
+    before the task contract (the shared settings read None as "no miss criterion" for the
+    planar task only; found by the input fuzz)."""
+    with pytest.raises(ValueError, match="success_miss_m"):
+        gym.make(env_id, success_miss_m=None)
