@@ -7,6 +7,7 @@ Imported as ``proc_helpers`` (the directory of ``tests/conftest.py`` is on ``sys
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import textwrap
@@ -33,6 +34,21 @@ def wait_for(pred, timeout_s: float, proc: subprocess.Popen | None = None) -> No
         if time.monotonic() - t0 > timeout_s:
             raise AssertionError("timed out")
         time.sleep(0.05)
+
+
+def sigkill_when(proc: subprocess.Popen, ready, delay_s: float, timeout_s: float = 300,
+                 before_kill=None) -> None:
+    """Wait until ``ready()`` (failing if ``proc`` ends first), sleep ``delay_s``, call
+    ``before_kill()`` if given, SIGKILL ``proc``; the process is always reaped."""
+    try:
+        wait_for(ready, timeout_s, proc)
+        time.sleep(delay_s)
+        if before_kill is not None:
+            before_kill()
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.kill()
+        proc.wait()
 
 
 def children(pid: int) -> list[int]:

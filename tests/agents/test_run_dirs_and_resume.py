@@ -15,7 +15,15 @@ from pathlib import Path
 
 import pytest
 import yaml
-from proc_helpers import children, kill_point, kill_seed, noted, python, wait_for
+from proc_helpers import (
+    children,
+    kill_point,
+    kill_seed,
+    noted,
+    python,
+    sigkill_when,
+    wait_for,
+)
 
 # ----------------------------------------------------------------------- run directories (item 1)
 
@@ -184,13 +192,8 @@ def _kill_and_resume_training(tmp_path, seed: int, n: int, kseed: int):
     delay = random.Random(kseed).uniform(0.0, 1.0)
     where = kill_point("the first training checkpoint", kseed, delay)
     proc = python(_TRAIN_CLI, *args)
-    try:
-        wait_for(lambda: any((run_dir / "checkpoints").glob("rl_model_*_steps.zip")), 300, proc)
-        time.sleep(delay)
-        proc.send_signal(signal.SIGKILL)
-    finally:
-        proc.kill()
-        proc.wait()
+    sigkill_when(proc, lambda: any((run_dir / "checkpoints").glob("rl_model_*_steps.zip")),
+                 delay)
     with noted(where):
         # the kill lands part-way (no final model) or after the end (the final model is written
         # only after the last checkpoint recorded all n steps): either way timing.yml accounts for

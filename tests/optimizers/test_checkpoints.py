@@ -5,12 +5,10 @@ at a seeded random point resumes to the uninterrupted result, and a damaged chec
 from __future__ import annotations
 
 import random
-import signal
-import time
 
 import numpy as np
 import pytest
-from proc_helpers import kill_point, kill_seed, noted, python, wait_for
+from proc_helpers import kill_point, kill_seed, noted, python, sigkill_when
 
 # ------------------------------------------------------------------------------------- optimisers
 
@@ -31,13 +29,7 @@ def _kill_and_resume_asaga(tmp_path, n_gen, kseed):
     delay = random.Random(kseed).uniform(0.0, 0.3)
     where = kill_point("the first ASAGA checkpoint", kseed, delay)
     proc = python(_ASAGA_CLI, str(ck), str(n_gen))
-    try:
-        wait_for(ck.exists, 300, proc)
-        time.sleep(delay)
-        proc.send_signal(signal.SIGKILL)
-    finally:
-        proc.kill()
-        proc.wait()
+    sigkill_when(proc, ck.exists, delay)
     with noted(where):
         problem = PlanarLandingProblem()
         resumed = ASAGA(n_generations=n_gen).solve(problem, seed=5, checkpoint=ck)

@@ -7,12 +7,19 @@ from __future__ import annotations
 
 import json
 import random
-import signal
-import time
 
 import numpy as np
 import pytest
-from proc_helpers import alive, children, kill_point, kill_seed, noted, python, wait_for
+from proc_helpers import (
+    alive,
+    children,
+    kill_point,
+    kill_seed,
+    noted,
+    python,
+    sigkill_when,
+    wait_for,
+)
 
 # --------------------------------------------------------------------------------------- datasets
 
@@ -80,17 +87,12 @@ def _kill_and_resume_dataset(tmp_path, reference, n, kseed):
                   "--n-steps", "200", "--out", str(out), "--no-progress")
     shards = out.with_name(out.name + ".shards")
     workers: set[int] = set()
-    try:
-        def started():
-            workers.update(children(proc.pid))
-            return any(shards.glob("results/*.npz"))
-        wait_for(started, 300, proc)
-        time.sleep(delay)
+
+    def started():
         workers.update(children(proc.pid))
-        proc.send_signal(signal.SIGKILL)
-    finally:
-        proc.kill()
-        proc.wait()
+        return any(shards.glob("results/*.npz"))
+
+    sigkill_when(proc, started, delay, before_kill=lambda: workers.update(children(proc.pid)))
     with noted(where):
         assert workers, "the dataset run started no worker process"
         # item 10: the workers end with their parent (no orphans left computing or waiting)
