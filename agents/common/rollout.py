@@ -21,7 +21,7 @@ import numpy as np
 
 from agents.common.law import FlightComputer, GuidanceLaw, Navigation, Truth, law_label
 
-__all__ = ["Rollout", "fly", "make_vec", "vector_info"]
+__all__ = ["CaseOutcomes", "Rollout", "fly", "make_vec", "vector_info"]
 
 
 def make_vec(env_id: str, n: int, env_kwargs: dict[str, Any] | None = None):
@@ -45,13 +45,10 @@ def vector_info(info: dict, key: str, n: int) -> np.ndarray:
 
 
 @dataclass
-class Rollout:
-    """Per-case outcome of :func:`fly` (arrays of length n_cases).
-
-    ``records[i]`` (for the recorded cases) holds ``obs`` (T, n_obs), ``state_nd`` (T, n_state),
-    ``t_s`` (T,) — the states at which an action was taken — and ``action`` (T, n_act); with
-    ``record_final`` also the final state (``state_nd`` and ``t_s`` one longer).
-    """
+class CaseOutcomes:
+    """What the env's ``info`` says of each case at its end (arrays of length n_cases), and
+    what the law's decisions cost: ``n_decisions`` of landers still flying and the law's
+    ``policy_wall_s`` (s) over them."""
 
     is_success: np.ndarray
     touchdown_speed_m_s: np.ndarray
@@ -60,6 +57,22 @@ class Rollout:
     episode_time_s: np.ndarray
     n_decisions: int
     policy_wall_s: float
+
+    @property
+    def us_per_decision(self) -> float:
+        """The law's wall time per decision (µs)."""
+        return 1e6 * self.policy_wall_s / max(self.n_decisions, 1)
+
+
+@dataclass
+class Rollout(CaseOutcomes):
+    """Per-case outcome of :func:`fly` (:class:`CaseOutcomes`) and the recorded histories.
+
+    ``records[i]`` (for the recorded cases) holds ``obs`` (T, n_obs), ``state_nd`` (T, n_state),
+    ``t_s`` (T,) — the states at which an action was taken — and ``action`` (T, n_act); with
+    ``record_final`` also the final state (``state_nd`` and ``t_s`` one longer).
+    """
+
     records: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
 
 

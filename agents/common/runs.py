@@ -64,33 +64,31 @@ def _fsync(path: Path) -> None:
         os.fsync(fh.fileno())
 
 
-def save_model_atomic(model, path: str | Path) -> Path:
-    """``model.save`` to a temporary ``.zip`` beside ``path`` (unique per process), then
-    ``os.replace``."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.zip")
+def _save_atomic(save, path: Path, tmp: Path) -> Path:
+    """``save(tmp)`` (a library's own writer), fsync, then ``os.replace(tmp, path)``; the
+    temporary file is removed if anything fails."""
     try:
-        model.save(tmp)
+        save(tmp)
         _fsync(tmp)
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
     return path
+
+
+def save_model_atomic(model, path: str | Path) -> Path:
+    """``model.save`` to a temporary ``.zip`` beside ``path`` (unique per process), then
+    ``os.replace``."""
+    path = Path(path)
+    return _save_atomic(model.save, path, path.with_name(f".{path.stem}.{os.getpid()}.tmp.zip"))
 
 
 def save_vecnormalize_atomic(vecnormalize, path: str | Path) -> Path:
     """``VecNormalize.save`` to a temporary file beside ``path``, then ``os.replace``."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        vecnormalize.save(str(tmp))
-        _fsync(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
+    return _save_atomic(lambda tmp: vecnormalize.save(str(tmp)), path,
+                        path.with_name(f".{path.name}.{os.getpid()}.tmp"))
 
 
 def newest_loadable(candidates, load, what: str = "checkpoint", log=print):

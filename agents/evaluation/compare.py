@@ -104,9 +104,7 @@ def rollout(env_id: str, law: GuidanceLaw, n: int, seed: int,
               record_final=True, max_steps=max_steps)
     traces = {i: {"t_s": r["t_s"], "state_nd": r["state_nd"], "action": r["action"]}
               for i, r in out.records.items()}
-    return PolicyResult(law_label(law), np.arange(n), out.is_success, out.touchdown_speed_m_s,
-                        out.miss_distance_m, out.fuel_used_kg, out.episode_time_s,
-                        out.n_decisions, out.policy_wall_s, traces)
+    return PolicyResult.from_rollout(law_label(law), np.arange(n), out, traces)
 
 
 # ----------------------------------------------------------------------------- comparison

@@ -2,28 +2,27 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
+
+from agents.common.rollout import CaseOutcomes, Rollout
 
 __all__ = ["PolicyResult"]
 
 
 @dataclass
-class PolicyResult:
-    """Per-case outcome of one policy (arrays of length n_cases)."""
+class PolicyResult(CaseOutcomes):
+    """Per-case outcome of one law (:class:`~agents.common.rollout.CaseOutcomes`), its table
+    name, the case ids and the traced cases' histories (``t_s``, ``state_nd``, ``action``)."""
 
-    name: str
-    case_ids: np.ndarray
-    is_success: np.ndarray
-    touchdown_speed_m_s: np.ndarray
-    miss_distance_m: np.ndarray
-    fuel_used_kg: np.ndarray
-    episode_time_s: np.ndarray
-    n_decisions: int
-    policy_wall_s: float
+    name: str = ""
+    case_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     traces: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
 
-    @property
-    def us_per_decision(self) -> float:
-        return 1e6 * self.policy_wall_s / max(self.n_decisions, 1)
+    @classmethod
+    def from_rollout(cls, name: str, case_ids: np.ndarray, rollout: Rollout,
+                     traces: dict[int, dict[str, np.ndarray]]) -> PolicyResult:
+        """The result of a law whose flight :func:`~agents.common.rollout.fly` returned."""
+        outcomes = {f.name: getattr(rollout, f.name) for f in fields(CaseOutcomes)}
+        return cls(name=name, case_ids=np.asarray(case_ids), traces=traces, **outcomes)

@@ -45,7 +45,8 @@ from lunar_env.scenarios import PinpointScenario
 from ..problems.pinpoint import PinpointOCP
 from .serial import ControlGuess, get_solver, random_guess
 
-__all__ = ["PinpointOptimum", "solve_many", "solve_case", "replan", "env_ocp", "replan_ocp",
+__all__ = ["PinpointOptimum", "pinpoint_states", "solve_many", "solve_case", "replan",
+           "env_ocp", "replan_ocp",
            "scenario_fingerprint", "nearest_neighbour_order", "SOLVER_OPTIONS",
            "GATE_CLEARANCE", "N_RANDOM_RETRIES"]
 
@@ -303,6 +304,21 @@ def _solve_chain(scenario: PinpointScenario, states_nd: np.ndarray,
     return out
 
 
+def pinpoint_states(states_nd) -> np.ndarray:
+    """``states_nd`` as float64 rows of normalised pinpoint states, shape (n, 7).
+
+    Raises
+    ------
+    ValueError
+        Any other shape.
+    """
+    states = np.asarray(states_nd, dtype=np.float64)
+    if states.ndim != 2 or states.shape[1] != 7:
+        raise ValueError(f"states_nd has shape {states.shape}; expected (n, 7) normalised "
+                         "pinpoint states")
+    return states
+
+
 def solve_many(scenario: PinpointScenario, states_nd, *, n_workers: int = 1, executor=None,
                progress: bool = True, store: Callable[[Any, PinpointOptimum], None] | None = None,
                store_keys: Sequence | None = None) -> list[PinpointOptimum]:
@@ -341,10 +357,7 @@ def solve_many(scenario: PinpointScenario, states_nd, *, n_workers: int = 1, exe
         ``states_nd`` is not of shape (n, 7), ``n_workers < 1``, or ``store`` without one key
         per row.
     """
-    states = np.asarray(states_nd, dtype=np.float64)
-    if states.ndim != 2 or states.shape[1] != 7:
-        raise ValueError(f"states_nd has shape {states.shape}; expected (n, 7) normalised "
-                         "pinpoint states")
+    states = pinpoint_states(states_nd)
     if int(n_workers) < 1:
         raise ValueError(f"n_workers = {n_workers!r} must be >= 1")
     if store is not None and (store_keys is None or len(store_keys) != len(states)):

@@ -32,6 +32,7 @@ from optimizers.transcription.batch import (
     N_RANDOM_RETRIES,
     SOLVER_OPTIONS,
     PinpointOptimum,
+    pinpoint_states,
     solve_many,
 )
 
@@ -107,10 +108,7 @@ def pinpoint_optima(scenario, states_nd, *, workers: int = 1,
     ValueError
         ``states_nd`` is not of shape (n, 7), or ``workers < 1``.
     """
-    states = np.asarray(states_nd, dtype=np.float64)
-    if states.ndim != 2 or states.shape[1] != 7:
-        raise ValueError(f"states_nd has shape {states.shape}; expected (n, 7) normalised "
-                         "pinpoint states")
+    states = pinpoint_states(states_nd)
     if int(workers) < 1:
         raise ValueError(f"workers = {workers!r} must be >= 1")
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
