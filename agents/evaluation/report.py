@@ -8,6 +8,8 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from optimizers.common.checkpoint import save_figure_atomic
+
 if TYPE_CHECKING:
     from agents.evaluation.result import PolicyResult
 
@@ -107,9 +109,7 @@ def plot_comparison(report: dict[str, Any], path: str | Path) -> Path:
         ax_u.grid(alpha=0.3)
         ax_u.legend(fontsize=8)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    path = save_figure_atomic(fig, path, dpi=110)
     plt.close(fig)
     return path
 

@@ -15,7 +15,8 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-__all__ = ["save_checkpoint", "load_checkpoint", "atomic_write_bytes", "CheckpointMismatch"]
+__all__ = ["save_checkpoint", "load_checkpoint", "atomic_write_bytes", "save_figure_atomic",
+           "CheckpointMismatch"]
 
 _FORMAT = 1
 
@@ -43,6 +44,18 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
             pass
         raise
     return path
+
+
+def save_figure_atomic(fig, path: str | os.PathLike, **savefig_kwargs) -> Path:
+    """A matplotlib figure written atomically as the image format of ``path``'s suffix
+    (rendered in memory, then :func:`atomic_write_bytes`); ``savefig_kwargs`` as
+    ``Figure.savefig`` (``dpi``, ...)."""
+    import io
+
+    path = Path(path)
+    buf = io.BytesIO()
+    fig.savefig(buf, format=path.suffix.lstrip(".") or "png", **savefig_kwargs)
+    return atomic_write_bytes(path, buf.getvalue())
 
 
 def save_checkpoint(path: str | os.PathLike, identity: dict[str, Any], state: Any) -> Path:

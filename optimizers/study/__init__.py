@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from ..common.checkpoint import save_figure_atomic
 from ..common.executor import Executor, ResultStore, Task, TaskKey, run_tasks
 from .registry import ALGORITHMS, PROBLEMS, make_algorithm, make_problem
 
@@ -276,8 +277,6 @@ def plot_study(study: dict[str, Any], path: str | Path) -> Path:
     fig.suptitle(f"{ident['algorithm']} on {ident['problem']}: {len(rows)} runs, "
                  f"{int(ok.sum())} successes")
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    path = save_figure_atomic(fig, path, dpi=110)
     plt.close(fig)
     return path
