@@ -10,7 +10,7 @@ import numpy as np
 from agents.common.features import augment_observation, feature_constants, validate_features
 from agents.common.law import FlightComputer, GuidanceLaw, Navigation
 
-__all__ = ["SB3Law"]
+__all__ = ["SB3Law", "law_from_spec"]
 
 
 class SB3Law(GuidanceLaw):
@@ -62,3 +62,17 @@ class SB3Law(GuidanceLaw):
             obs = self.vecnormalize.normalize_obs(obs)
         action, _ = self.model.predict(obs, deterministic=True)
         return action
+
+
+def law_from_spec(spec, context) -> SB3Law:
+    """Factory of the law specs ``ppo``/``sac``/``td3``/``bc``/``dagger``:``RUN``
+    (:mod:`agents.common.law_specs`): the run directory or model ``.zip`` ``RUN``, labelled
+    ``NAME:run-name``. No options."""
+    spec.require_known_options(())
+    if not spec.argument:
+        raise ValueError(f"law {spec.text!r} needs a run: {spec.name}:RUN (a run directory or "
+                         "a model .zip)")
+    path = Path(spec.argument)
+    if not path.exists():
+        raise ValueError(f"law {spec.text!r}: run {spec.argument!r} does not exist")
+    return SB3Law.from_path(path, name=spec.label())
