@@ -145,7 +145,8 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
               record):
     """Integrate a batch with fixed-step RK4 and in-step event location.
 
-    y0 (B, nx); t0, dt, r_stop (B,); breaks (B, n_seg+1); coefs (B, n_seg, nu, order).
+    y0 (B, nx); t0, dt, r_stop (B,); breaks (B, n_seg+1); coefs (B, n_seg, nu, order);
+    p (B, n_params): each trajectory's model parameters (``params.as_array()`` per row).
     Returns y_end (B, nx), t_end (B,), status (B,), t_burnout (B,), n_rec (B,), traj.
     """
     n_traj = y0.shape[0]
@@ -160,6 +161,7 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
     else:
         traj = np.empty((1, 1, nx))
     for i in prange(n_traj):
+        pi = p[i]  # this trajectory's parameters (a plant error makes them per-lander)
         y = LOAD(y0[i])
         t = t0[i]
         h = dt[i]
@@ -173,7 +175,7 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
         st = EVENT_NONE
         g_speed = 0.0
         if stop_at_speed_min:
-            g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn, p, rs, m_dry)
+            g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn, pi, rs, m_dry)
         s_done = 0
         carry = False
         u0 = UZERO
@@ -187,7 +189,7 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
                 # a speed minimum is judged under a held control: restart the speed-rate
                 # sign at the new segment (a kink at the break itself is not an event)
                 if stop_at_speed_min:
-                    g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn, p,
+                    g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn, pi,
                                           rs, m_dry)
             while True:
                 hh = t_next - t
@@ -200,12 +202,12 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
                 u2 = control_in(breaks, coefs, i, k, t + hh, burn)
                 c1 = c0 if u1 == u0 else PREP(u1)
                 c2 = c1 if u2 == u1 else PREP(u2)
-                y1 = rk4_core(y, hh, c0, c1, c2, p)
+                y1 = rk4_core(y, hh, c0, c1, c2, pi)
                 kind = EVENT_NONE
                 best = hh
                 if burn > 0.0 and MASS(y1) <= m_dry:
                     tau = locate(EVENT_FUEL, y, t, hh, MASS(y) - m_dry, MASS(y1) - m_dry,
-                                 breaks, coefs, i, k, burn, p, rs, m_dry)
+                                 breaks, coefs, i, k, burn, pi, rs, m_dry)
                     if tau <= best:
                         best = tau
                         kind = EVENT_FUEL
@@ -220,24 +222,24 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
                         # (a lander braking to a stop just under the surface) crosses twice and
                         # shows no sign change at the step's ends. Look at the minimum.
                         tau_m = locate(EVENT_RADIUS_MIN, y, t, hh, RADIAL_RATE(y),
-                                       RADIAL_RATE(y1), breaks, coefs, i, k, burn, p, rs, m_dry)
-                        g_m = RADIUS(rk4_step(y, t, tau_m, breaks, coefs, i, k, burn, p)) - rs
+                                       RADIAL_RATE(y1), breaks, coefs, i, k, burn, pi, rs, m_dry)
+                        g_m = RADIUS(rk4_step(y, t, tau_m, breaks, coefs, i, k, burn, pi)) - rs
                         if g_m <= 0.0:
                             h_cross = tau_m
                             g1 = g_m
                     if h_cross > 0.0:
                         tau = locate(EVENT_RADIUS, y, t, h_cross, g0, g1, breaks, coefs, i, k,
-                                     burn, p, rs, m_dry)
+                                     burn, pi, rs, m_dry)
                         if tau < best or kind == EVENT_NONE:
                             best = tau
                             kind = EVENT_RADIUS
                 g1s = 0.0
                 if stop_at_speed_min:
-                    g1s = event_value(EVENT_SPEED_MIN, y1, t + hh, breaks, coefs, i, k, burn, p,
+                    g1s = event_value(EVENT_SPEED_MIN, y1, t + hh, breaks, coefs, i, k, burn, pi,
                                       rs, m_dry)
                     if g_speed < 0.0 and g1s >= 0.0:
                         tau = locate(EVENT_SPEED_MIN, y, t, hh, g_speed, g1s, breaks, coefs, i,
-                                     k, burn, p, rs, m_dry)
+                                     k, burn, pi, rs, m_dry)
                         if tau < best or kind == EVENT_NONE:
                             best = tau
                             kind = EVENT_SPEED_MIN
@@ -250,14 +252,14 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
                     carry = True
                     break
                 carry = False
-                y = rk4_step(y, t, best, breaks, coefs, i, k, burn, p)
+                y = rk4_step(y, t, best, breaks, coefs, i, k, burn, pi)
                 t = t + best
                 if kind == EVENT_FUEL:
                     burn = 0.0
                     t_burnout[i] = t
                     if stop_at_speed_min:
                         g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn,
-                                              p, rs, m_dry)
+                                              pi, rs, m_dry)
                     if t_next - t <= 1e-15 * (1.0 + abs(t)):
                         t = t_next
                         break

@@ -41,7 +41,8 @@ from . import dynamics as dyn
 
 __all__ = [
     "Model", "PLANAR", "MOON3D", "PiecewisePolynomial", "RadiusCrossing", "SpeedMinimum",
-    "Propagation", "integrate", "integrate_prepared", "integrate_reference", "STATUS_COMPLETED",
+    "Propagation", "integrate", "integrate_prepared", "integrate_reference", "params_rows",
+    "STATUS_COMPLETED",
     "STATUS_RADIUS", "STATUS_SPEED_MIN",
 ]
 
@@ -348,6 +349,22 @@ class Propagation:
     n_records: np.ndarray
 
 
+def params_rows(params, n: int) -> np.ndarray:
+    """Model parameters of ``n`` trajectories as the kernels take them: a C-contiguous float64
+    array (n, n_params).
+
+    ``params``: a parameter dataclass (:class:`~lunar_env.dynamics.PlanarParams`,
+    :class:`~lunar_env.dynamics.Moon3DParams`), its ``as_array()`` (n_params,) (the same for
+    every trajectory), or one row per trajectory (n, n_params) (e.g. a plant error per lander).
+    """
+    p = params.as_array() if hasattr(params, "as_array") else np.asarray(params, np.float64)
+    if p.ndim == 1:
+        return np.ascontiguousarray(np.broadcast_to(p, (int(n), p.shape[0])))
+    if p.ndim != 2 or p.shape[0] != n:
+        raise ValueError(f"params have shape {p.shape}; expected (n_params,) or ({n}, n_params)")
+    return np.ascontiguousarray(p, dtype=np.float64)
+
+
 def integrate(model: Model, y0_nd: np.ndarray, *, t0_nd, dt_nd, n_steps: int,
               control: PiecewisePolynomial, params, dry_mass_nd: float = 0.0,
               events: tuple = (), record: bool = False,
@@ -367,7 +384,9 @@ def integrate(model: Model, y0_nd: np.ndarray, *, t0_nd, dt_nd, n_steps: int,
         Number of RK4 steps (the same for every trajectory).
     control : PiecewisePolynomial
         Open-loop control of the same batch size.
-    params : PlanarParams or Moon3DParams
+    params : PlanarParams or Moon3DParams, or ndarray (batch, n_params)
+        Model parameters, the same for every trajectory or one row each (see
+        :func:`params_rows`).
     dry_mass_nd : float
         Mass at which fuel is exhausted and the burn ends.
     events : tuple of RadiusCrossing / SpeedMinimum
@@ -410,7 +429,7 @@ def integrate(model: Model, y0_nd: np.ndarray, *, t0_nd, dt_nd, n_steps: int,
             raise TypeError(f"unknown event {ev!r}; use RadiusCrossing or SpeedMinimum")
     if parallel is None:
         parallel = n_traj >= _PARALLEL_MIN_BATCH and numba.config.NUMBA_NUM_THREADS > 1
-    p = params.as_array()
+    p = params_rows(params, n_traj)
     y_end, t_end, status, t_burn, n_rec, traj = model.kernel(parallel)(
         y0, t0, dt, n_steps, control.breaks, control.coefs, p, float(dry_mass_nd), r_stop,
         speed, bool(record))
@@ -438,7 +457,7 @@ def integrate_prepared(model: Model, y0_nd: np.ndarray, t0_nd: np.ndarray, dt_nd
     right shapes, ``y0_nd`` (B, n_state) finite, ``t0_nd``/``dt_nd``/``r_stop_nd`` (B,)
     (``r_stop_nd`` NaN disables the radius event), ``dt_nd > 0``, ``breaks`` (B, n_seg+1) and
     ``coefs`` (B, n_seg, n_control, order) as in :class:`PiecewisePolynomial`, ``params_array``
-    from ``params.as_array()``. No recording.
+    (B, n_params) one row per trajectory (:func:`params_rows`). No recording.
 
     ``out``: optional arrays ``(y_end (B, n_state), t_end (B,), status (B,) int64,
     t_burnout (B,))``, C-contiguous, not overlapping the inputs, that receive the results (and

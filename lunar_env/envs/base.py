@@ -20,6 +20,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from .. import uncertainty as unc
 from .core import LanderBatch
 from .task import LandingTask
 
@@ -55,7 +56,7 @@ def validate_actions(action, shape: tuple[int, ...]) -> np.ndarray:
 
 
 #: ``reset(options=...)`` keys every lander env understands.
-RESET_OPTION_KEYS = ("state_si", "state_nd", "nominal")
+RESET_OPTION_KEYS = ("state_si", "state_nd", "nominal", "errors")
 
 
 def _check_state_option(key: str, value, n_state: int, num_envs: int | None) -> None:
@@ -72,7 +73,8 @@ def _check_state_option(key: str, value, n_state: int, num_envs: int | None) -> 
         raise ValueError(f"options[{key!r}] contains NaN or inf: {arr!r}")
 
 
-def check_reset_options(options, n_state: int, num_envs: int | None = None) -> None:
+def check_reset_options(options, n_state: int, num_envs: int | None = None,
+                        uncertain: bool = False) -> None:
     """Validate ``reset(options=...)``: known keys, state rows of the right shape, finite.
 
     Raises ValueError naming the key (unknown keys are errors, not silently ignored).
@@ -80,6 +82,9 @@ def check_reset_options(options, n_state: int, num_envs: int | None = None) -> N
     from ..validation import require_option_keys
 
     require_option_keys("reset options", options, RESET_OPTION_KEYS)
+    if options and options.get("errors") is not None and not uncertain:
+        raise ValueError("reset option 'errors' needs an env with an uncertainty model; make "
+                         "it with uncertainty=... (a set name, an UncertaintyModel or a dict)")
     for key in ("state_si", "state_nd"):
         if options and options.get(key) is not None:
             _check_state_option(key, options[key], n_state, num_envs)
@@ -197,6 +202,7 @@ class LanderEnv(_TaskDescription, gym.Env):
         self._batch = LanderBatch(self._task, 1)
         self._act_shape = self.action_space.shape
         self._done = True
+        self._error_rng: np.random.Generator | None = None
         self._history: list = []
         self._renderer = None
 
@@ -212,9 +218,16 @@ class LanderEnv(_TaskDescription, gym.Env):
     @property
     def navigation_state_nd(self) -> np.ndarray:
         """The navigation solution: the state the lander's flight computer is given,
-        normalised, shape (n_state,) (a copy); the observation encodes it. This env has no
-        navigation errors, so it equals :attr:`state_nd`."""
-        return self.state_nd
+        normalised, shape (n_state,) (a copy); the observation encodes it. Without an
+        uncertainty model it equals :attr:`state_nd`."""
+        return self._batch.last_navigation[0].copy()
+
+    @property
+    def episode_errors(self) -> unc.EpisodeErrors:
+        """This episode's plant and navigation errors (one row; all zero and unit scales
+        without an uncertainty model): the truth, for analysis and omniscient references."""
+        b = self._batch
+        return b.errors.take([0]) if b.uncertain else unc.EpisodeErrors.zeros(1)
 
     @property
     def t_s(self) -> float:
@@ -233,10 +246,19 @@ class LanderEnv(_TaskDescription, gym.Env):
     # -- protocol -------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None
               ) -> tuple[np.ndarray, dict]:
-        check_reset_options(options, self._task.model.n_state)
+        check_reset_options(options, self._task.model.n_state, None, self._batch.uncertain)
         super().reset(seed=seed)
         y0 = self._task.initial_state(self.np_random, options)
-        self._batch.set_state(0, y0)
+        b = self._batch
+        if b.uncertain:
+            if seed is not None or self._error_rng is None:
+                self._error_rng = unc.error_stream(seed)
+            e = unc.draw_errors(self._task.uncertainty, self._error_rng)
+            if options and options.get("errors") is not None:
+                e = unc.errors_from_option(options["errors"])  # drawn anyway: streams stay aligned
+            y0 = b.true_start(y0, e)[0]
+            b.set_errors(0, e)
+        b.set_state(0, y0)
         self._done = False
         self._history = [(self._batch.y[0].copy(), None)] if self.render_mode else []
         b = self._batch
@@ -244,6 +266,9 @@ class LanderEnv(_TaskDescription, gym.Env):
         q = b.info_arrays(none, none, np.zeros(1, dtype=bool))
         obs = b.observations(q["time_s"])[0]
         info = _single_info(q, self._task.has_target)
+        if b.uncertain:
+            info["state_nd"] = b.y[0].copy()
+            info["navigation_state_nd"] = b.last_navigation[0].copy()
         if self.render_mode == "human":
             self.render()
         return obs, info
@@ -271,6 +296,9 @@ class LanderEnv(_TaskDescription, gym.Env):
         truncated = out["truncated"].item()
         self._done = terminated or truncated
         info = _single_info(q, self._task.has_target)
+        if b.uncertain:
+            info["state_nd"] = b.y[0].copy()
+            info["navigation_state_nd"] = b.last_navigation[0].copy()
         if self.render_mode:
             self._history.append((b.y[0].copy(), controls[0]))
             if self.render_mode == "human":
@@ -342,6 +370,8 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         self.render_mode = None
         self._batch = LanderBatch(self._task, self.num_envs, parallel)
         self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
+        # each sub-env's error stream (:func:`lunar_env.uncertainty.error_stream` of its seed)
+        self._error_rngs: list[np.random.Generator | None] = [None] * self.num_envs
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._act_shape = (self.num_envs, *self.single_action_space.shape)
         self._started = False  # step() before reset() is an error, not a division by zero
@@ -359,9 +389,16 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
 
     @property
     def navigation_state_nd(self) -> np.ndarray:
-        """The navigation solutions, shape (N, n_state) (see
+        """The navigation solutions, shape (N, n_state) (a copy; see
         :attr:`LanderEnv.navigation_state_nd`)."""
-        return self.state_nd
+        return self._batch.last_navigation.copy()
+
+    @property
+    def episode_errors(self) -> unc.EpisodeErrors:
+        """The current episodes' errors, N rows (see :attr:`LanderEnv.episode_errors`)."""
+        b = self._batch
+        return b.errors.take(np.arange(self.num_envs)) if b.uncertain \
+            else unc.EpisodeErrors.zeros(self.num_envs)
 
     @property
     def t_s(self) -> np.ndarray:
@@ -414,8 +451,19 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
                 opt[k] = arr[i] if arr is not None and arr.ndim == 2 else v
         return self._task.initial_state(self._rngs[i], opt)
 
+    def _draw_errors(self, i: int) -> unc.EpisodeErrors:
+        if self._error_rngs[i] is None:
+            self._error_rngs[i] = unc.error_stream(None)
+        return unc.draw_errors(self._task.uncertainty, self._error_rngs[i])
+
     def _reset_one(self, i: int, options: dict | None) -> None:
-        self._batch.set_state(i, self._initial_state(i, options))
+        y0 = self._initial_state(i, options)
+        b = self._batch
+        if b.uncertain:
+            e = self._draw_errors(i)
+            y0 = b.true_start(y0, e)[0]
+            b.set_errors(i, e)
+        b.set_state(i, y0)
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None
               ) -> tuple[np.ndarray, dict]:
@@ -425,7 +473,8 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         ``options["state_si"]`` / ``["state_nd"]`` raises ValueError naming the row and leaves
         every lander (and every generator) as it was.
         """
-        check_reset_options(options, self._task.model.n_state, self.num_envs)
+        check_reset_options(options, self._task.model.n_state, self.num_envs,
+                            self._batch.uncertain)
         rngs = self._rngs
         if seed is not None:
             seeds = ([seed + i for i in range(self.num_envs)] if isinstance(seed, int)
@@ -435,11 +484,22 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
             rngs = [seeding.np_random(s)[0] for s in seeds]
         saved = [r.bit_generator.state for r in self._rngs]
         old_rngs, self._rngs = self._rngs, rngs
-        y0 = np.empty_like(self._batch.y)
+        b = self._batch
+        old_err = self._error_rngs
+        saved_err = [None if r is None else r.bit_generator.state for r in old_err]
+        if seed is not None and b.uncertain:
+            self._error_rngs = [unc.error_stream(s) for s in seeds]
+        y0 = np.empty_like(b.y)
+        errors = []
         try:
             for i in range(self.num_envs):
                 try:
                     y0[i] = self._initial_state(i, options)
+                    if b.uncertain:
+                        errors.append(self._draw_errors(i))
+                        if options and options.get("errors") is not None:
+                            errors[-1] = unc.errors_from_option(options["errors"], row=i)
+                        y0[i] = b.true_start(y0[i], errors[-1])[0]
                 except ValueError as exc:
                     raise ValueError(f"reset of sub-env {i} (row {i} of the options): {exc}"
                                      ) from None
@@ -447,8 +507,14 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
             self._rngs = old_rngs
             for r, st in zip(self._rngs, saved, strict=True):
                 r.bit_generator.state = st
+            self._error_rngs = old_err
+            for r, st in zip(old_err, saved_err, strict=True):
+                if r is not None:
+                    r.bit_generator.state = st
             raise
-        self._batch.set_state(np.arange(self.num_envs), y0)
+        for i, e in enumerate(errors):
+            b.set_errors(i, e)
+        b.set_state(np.arange(self.num_envs), y0)
         self._autoreset[:] = False
         self._started = True
         n = self.num_envs
@@ -489,5 +555,12 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
 
     def _observe_and_info(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray
                           ) -> tuple[np.ndarray, dict]:
-        q = self._batch.info_arrays(speed, miss, success)
-        return self._batch.observations(q["time_s"]), _vector_info(q, self._task.has_target)
+        b = self._batch
+        q = b.info_arrays(speed, miss, success)
+        obs = b.observations(q["time_s"])
+        info = _vector_info(q, self._task.has_target)
+        if b.uncertain:
+            info["state_nd"] = b.y.copy()
+            info["navigation_state_nd"] = b.last_navigation.copy()
+            info["_state_nd"] = info["_navigation_state_nd"] = info["_time_s"]
+        return obs, info

@@ -16,6 +16,13 @@ An env step (:meth:`LanderBatch.step`):
 3. **Bookkeeping**: fuel reward, terminal landing-quality term, truncation at the time limit,
    and the per-lander quantities every ``info`` reports (:meth:`LanderBatch.info_arrays`).
 
+Under a task's uncertainty model (:mod:`lunar_env.uncertainty`; none by default) the batch also
+holds each lander's episode errors: its plant (thrust and Isp scale, in its own row of the
+kernel's parameters; a misalignment bias added to its gimbal angles) and its navigation errors,
+which make the observations encode the *navigated* state (:meth:`LanderBatch.navigation_states`)
+while the integration, the reward and the verdict use the truth. Without errors none of this
+runs, and the arithmetic is exactly that of an env without the model.
+
 This is the only place where any of this is computed: the single env is a batch of one, and it,
 the native vector env and ``step_landers`` only present the same arrays in their own formats.
 
@@ -32,6 +39,7 @@ import numba
 import numpy as np
 
 from .. import integrators as integ
+from .. import uncertainty as unc
 
 __all__ = ["LanderBatch", "landing_penalty", "SPEED_SCALE_M_S", "MISS_SCALE_M",
            "INFO_KEYS"]
@@ -156,6 +164,17 @@ class LanderBatch:
         self._substeps = task.substeps
         self._parallel = (self.n >= PARALLEL_MIN_BATCH if parallel is None else bool(parallel)) \
             and numba.config.NUMBA_NUM_THREADS > 1
+        # the kernel's parameters, one row per lander (a plant error changes a lander's row)
+        self._p = np.array(integ.params_rows(task.params_array, self.n))
+        self.uncertainty = task.uncertainty
+        #: the landers carry episode errors (False: the model is null, nothing below runs)
+        self.uncertain = not task.uncertainty.is_null
+        self.errors = unc.EpisodeErrors.zeros(self.n) if self.uncertain else None
+        self._mass_belief = np.zeros(self.n)  # flight computer's mass minus the truth (kg)
+        #: decisions taken in each lander's episode (the navigation noise's counter)
+        self.decision = np.zeros(self.n, dtype=np.int64)
+        self._n_angles = nu - 1  # every control channel but the last (throttle) is an angle
+        self._nav: np.ndarray | None = None
 
     # -- state ----------------------------------------------------------------------------------
     def set_state(self, i, y_nd: np.ndarray) -> None:
@@ -163,12 +182,71 @@ class LanderBatch:
         self.y[i] = y_nd
         self.t_nd[i] = 0.0
         self.m_start_nd[i] = self.y[i, -1] if np.ndim(i) == 0 else self.y[i][:, -1]
+        if self.uncertain:
+            self.decision[i] = 0
+            self._nav = None
+
+    def true_start(self, y_planned_nd: np.ndarray, errors: unc.EpisodeErrors) -> np.ndarray:
+        """The true initial states (k, n_state) of episodes planned to start at
+        ``y_planned_nd`` (k, n_state) with the k-row ``errors``: the entry errors and the wet-mass
+        error added (:meth:`~lunar_env.envs.task.LandingTask.offset_states`).
+
+        Raises
+        ------
+        ValueError
+            If an error puts a start at or below the terminal radius or the dry mass.
+        """
+        task = self.task
+        y = task.offset_states(np.atleast_2d(y_planned_nd), errors.entry_position_m,
+                               errors.entry_velocity_m_s, errors.mass_error_kg)
+        if not (np.all(task.radius_nd(y) > task.r_stop_nd) and np.all(y[:, -1] > task.dry_mass_nd)):
+            raise ValueError("the entry or mass error of the uncertainty model puts the start at "
+                             "or below the terminal radius or the dry mass; reduce its σ")
+        return y
+
+    def set_errors(self, i: int, errors: unc.EpisodeErrors) -> None:
+        """Give lander ``i`` the one-row episode ``errors`` (its plant and navigation)."""
+        self.errors.set_row(i, errors)
+        self._mass_belief[i] = -errors.mass_error_kg[0]
+        p = np.array(self.task.params_array)
+        # parameters 0 and 1 of both models: maximum thrust and exhaust velocity (Isp·g0)
+        p[0] *= errors.thrust_scale[0]
+        p[1] *= errors.isp_scale[0]
+        self._p[i] = p
+
+    def navigation_states(self) -> np.ndarray:
+        """The navigated states (n, n_state) of every lander now: the truth with each lander's
+        navigation bias and this decision's noise (along up, downrange, crossrange; scaled by
+        :func:`~lunar_env.uncertainty.radar_weight` at the true altitude), and the mass the
+        flight computer believes (the planned initial mass minus the propellant burnt). The
+        truth itself without an uncertainty model."""
+        if not self.uncertain:
+            return self.y
+        task, e = self.task, self.errors
+        dpos, dvel = unc.navigation_errors(self.uncertainty, e, self.decision,
+                                           task.altitude_m(self.y), task.n_axes)
+        return task.offset_states(self.y, dpos, dvel, self._mass_belief)
 
     def observations(self, t_s: np.ndarray | None = None) -> np.ndarray:
-        """Observations (n, n_obs) float32 of every lander now; ``t_s`` (n,) their episode
-        times (s) when already at hand (``info_arrays(...)["time_s"]``), saving a multiply."""
-        return self.task.observation(self.y, self.t_nd * self.task.time_ref_s if t_s is None
-                                     else t_s)
+        """Observations (n, n_obs) float32 of every lander now (of the navigated states, see
+        :meth:`navigation_states`; remembered for :attr:`last_navigation`); ``t_s`` (n,) their
+        episode times (s) when already at hand (``info_arrays(...)["time_s"]``), saving a
+        multiply."""
+        t = self.t_nd * self.task.time_ref_s if t_s is None else t_s
+        if not self.uncertain:
+            return self.task.observation(self.y, t)
+        self._nav = self.navigation_states()
+        return self.task.observation(self._nav, t)
+
+    @property
+    def last_navigation(self) -> np.ndarray:
+        """The navigated states (n, n_state) the last observations encode (the truth without
+        an uncertainty model); read-only."""
+        if not self.uncertain:
+            return self.y
+        if self._nav is None:
+            self._nav = self.navigation_states()
+        return self._nav
 
     def info_arrays(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray,
                     scratch: bool = False) -> dict[str, np.ndarray]:
@@ -191,7 +269,8 @@ class LanderBatch:
                 "time_s": t_s, "touchdown_speed_m_s": speed, "miss_distance_m": miss}
 
     # -- physics --------------------------------------------------------------------------------
-    def _powered(self, idx, y0: np.ndarray, t0: np.ndarray, controls: np.ndarray):
+    def _powered(self, idx, y0: np.ndarray, t0: np.ndarray, controls: np.ndarray,
+                 p: np.ndarray):
         task = self.task
         varies = task.gate_range_m is not None
         if idx is None:
@@ -210,10 +289,10 @@ class LanderBatch:
             out = (np.empty_like(y0), np.empty(k), np.empty(k, dtype=np.int64), np.empty(k))
         _prepare(t0, self._dt_nd, controls, breaks, coefs)
         return integ.integrate_prepared(task.model, y0, t0, h, self._substeps, breaks, coefs,
-                                        task.params_array, task.dry_mass_nd, rs, True, parallel,
-                                        out)
+                                        p, task.dry_mass_nd, rs, True, parallel, out)
 
-    def _resume(self, y0: np.ndarray, t0: float, t1: float, controls: np.ndarray):
+    def _resume(self, y0: np.ndarray, t0: float, t1: float, controls: np.ndarray,
+                p: np.ndarray):
         """Powered flight of one lander from a speed minimum that is not a cut-off to the step's
         end ``t1``, in equal RK4 steps no longer than the regular substep."""
         task = self.task
@@ -221,11 +300,11 @@ class LanderBatch:
         ctrl = integ.PiecewisePolynomial.constant(controls[None], np.array([t0]), np.array([t1]))
         p = integ.integrate(
             task.model, y0[None], t0_nd=t0, dt_nd=(t1 - t0) / n, n_steps=n, control=ctrl,
-            params=task.params, dry_mass_nd=task.dry_mass_nd,
+            params=p, dry_mass_nd=task.dry_mass_nd,
             events=(integ.RadiusCrossing(task.r_stop_nd), integ.SpeedMinimum()), parallel=False)
         return p.y_end[0], p.t_end[0], p.status[0], p.t_burnout[0]
 
-    def _fall(self, y0: np.ndarray, t0: np.ndarray):
+    def _fall(self, y0: np.ndarray, t0: np.ndarray, p: np.ndarray):
         """Engine off until the landing radius (or ``max_fall_s``): the public integrator."""
         task = self.task
         k = len(y0)
@@ -233,7 +312,7 @@ class LanderBatch:
             np.zeros((k, task.model.n_control)), t0, t0 + task.n_fall * task.h_nd)
         return integ.integrate(
             task.model, y0, t0_nd=t0, dt_nd=task.h_nd, n_steps=task.n_fall, control=ctrl,
-            params=task.params, dry_mass_nd=task.dry_mass_nd,
+            params=p, dry_mass_nd=task.dry_mass_nd,
             events=(integ.RadiusCrossing(task.r_stop_nd),),
             parallel=self._parallel and k >= integ._PARALLEL_MIN_BATCH)
 
@@ -254,9 +333,22 @@ class LanderBatch:
         task = self.task
         if idx is None:
             y0, t0 = self.y, self.t_nd
+            p = self._p
         else:
             y0, t0 = self.y[idx], self.t_nd[idx]
-        y_end, t_end, status, t_burn = self._powered(idx, y0, t0, controls)
+            p = self._p[idx] if self.uncertain else self._p[:len(idx)]
+        if self.uncertain:
+            # the engine points where commanded plus its misalignment (gimbal-angle biases)
+            bias = self.errors.misalignment_rad if idx is None else \
+                self.errors.misalignment_rad[idx]
+            controls = np.array(controls, dtype=np.float64)
+            controls[:, :self._n_angles] += bias[:, :self._n_angles]
+            self._nav = None
+            if idx is None:
+                self.decision += 1
+            else:
+                self.decision[idx] += 1
+        y_end, t_end, status, t_burn = self._powered(idx, y0, t0, controls, p)
         k = len(y_end)
         reward = self._reward[:k] if scratch else np.empty(k)
         late = self._late[:k]  # internal: the returned flags are built from it
@@ -286,7 +378,7 @@ class LanderBatch:
                 break
             for j in np.flatnonzero(resume):  # rare: one lander at a time, batch-independent
                 y_end[j], t_end[j], status[j], tb = self._resume(
-                    y_end[j], t_end[j], t_step_end[j], controls[j])
+                    y_end[j], t_end[j], t_step_end[j], controls[j], p[j:j + 1])
                 burnt[j] |= not np.isnan(tb)
         touchdown = status == integ.STATUS_RADIUS
         if task.gate_range_m is not None:
@@ -297,7 +389,7 @@ class LanderBatch:
         lost = np.zeros_like(touchdown)
         if engine_off.any():
             j = np.flatnonzero(engine_off)
-            fall = self._fall(y_end[j], t_end[j])
+            fall = self._fall(y_end[j], t_end[j], p[j])
             y_end[j] = fall.y_end
             t_end[j] = fall.t_end
             landed = fall.status == integ.STATUS_RADIUS

@@ -15,6 +15,7 @@ import numpy as np
 from .. import dynamics as dyn
 from .. import integrators as integ
 from ..scenarios import PinpointScenario, get_scenario
+from ..uncertainty import UncertaintyModel
 from ..validation import require_finite_positive
 from .base import LanderEnv, LanderVectorEnv
 from .task import LandingTask, StepSettings, box, float_array
@@ -77,6 +78,19 @@ def _altitude_kernel(y, radius_nd, length_ref_m, out):  # pragma: no cover  (com
         out[i] = (r - radius_nd) * length_ref_m
 
 
+@numba.njit(cache=True)
+def _offset_kernel(y, dpos, dvel, dmass, n_hat, L, V, M, out):  # pragma: no cover  (compiled)
+    """:meth:`PinpointTask.offset_states` in one loop (the navigated state of every decision)."""
+    for i in range(y.shape[0]):
+        f = dyn.orbital_frame(y[i, 0], y[i, 1], y[i, 2], n_hat[0], n_hat[1], n_hat[2])
+        for j in range(3):
+            out[i, j] = y[i, j] + (dpos[i, 0] * f[j] + dpos[i, 1] * f[3 + j]
+                                   + dpos[i, 2] * f[6 + j]) / L
+            out[i, 3 + j] = y[i, 3 + j] + (dvel[i, 0] * f[j] + dvel[i, 1] * f[3 + j]
+                                           + dvel[i, 2] * f[6 + j]) / V
+        out[i, 6] = y[i, 6] + dmass[i] / M
+
+
 def angles_from_action(action, alpha_bounds_rad: tuple[float, float] = _PENG.alpha_bounds_rad,
                        beta_bounds_rad: tuple[float, float] = _PENG.beta_bounds_rad
                        ) -> tuple[np.ndarray, np.ndarray]:
@@ -116,7 +130,8 @@ class PinpointTask(LandingTask):
                  throttle_channel: bool = False, success_speed_m_s: float = 5.0,
                  success_miss_m: float = 500.0, max_fall_s: float | None = None,
                  cutoff_speed_m_s: float = 20.0, charge_propellant_on_failure: bool = True,
-                 gate_range_m: float | None = None) -> None:
+                 gate_range_m: float | None = None,
+                 uncertainty: UncertaintyModel | str | dict | None = None) -> None:
         sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
         if not isinstance(sc, PinpointScenario):
             raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not a pinpoint scenario; "
@@ -127,7 +142,7 @@ class PinpointTask(LandingTask):
             cutoff_speed_m_s=cutoff_speed_m_s, default_time_limit_s=1.5 * sc.tf_bounds_s[1],
             # a pinpoint landing always has a miss criterion: None is refused, not read as inf
             success_miss_m=require_finite_positive("success_miss_m", success_miss_m))
-        super().__init__(sc, settings)
+        super().__init__(sc, settings, uncertainty)
         s = self.scaling
         #: v1 reward: an episode that ends without success is also charged the propellant left
         #: (see the Rewards section of the manual); False gives v0's reward
@@ -237,6 +252,23 @@ class PinpointTask(LandingTask):
     def speed_m_s(self, y: np.ndarray) -> np.ndarray:
         """Speed relative to the rotating Moon (m/s), shape (B,)."""
         return np.sqrt(np.sum(y[:, 3:6] ** 2, axis=1)) * self.velocity_ref_m_s
+
+    def offset_states(self, y: np.ndarray, dpos_m: np.ndarray, dvel_m_s: np.ndarray,
+                      dmass_kg: np.ndarray) -> np.ndarray:
+        """Moon-fixed states displaced along the orbital frame at each position (up x̂,
+        downrange ŷ, crossrange ẑ; :func:`~lunar_env.dynamics.orbital_frame`) and in mass."""
+        out = np.empty((len(y), 7))
+        _offset_kernel(np.ascontiguousarray(y, dtype=np.float64),
+                       np.ascontiguousarray(dpos_m, dtype=np.float64),
+                       np.ascontiguousarray(dvel_m_s, dtype=np.float64),
+                       np.ascontiguousarray(dmass_kg, dtype=np.float64), self.plane_normal,
+                       self.length_ref_m, self.velocity_ref_m_s, self.mass_ref_kg, out)
+        return out
+
+    def radius_nd(self, y: np.ndarray) -> np.ndarray:
+        """|r| (normalised), shape (B,)."""
+        y = np.asarray(y)
+        return np.sqrt(np.sum(y[:, 0:3] ** 2, axis=1))
 
     def altitude_m(self, y: np.ndarray) -> np.ndarray:
         """Altitude above the reference sphere R_L (m) (the target is 2 km above it)."""

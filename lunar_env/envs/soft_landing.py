@@ -15,6 +15,7 @@ import numpy as np
 
 from .. import integrators as integ
 from ..scenarios import PlanarScenario, get_scenario
+from ..uncertainty import UncertaintyModel
 from .base import LanderEnv, LanderVectorEnv
 from .task import LandingTask, StepSettings, box, float_array
 
@@ -63,6 +64,19 @@ def _altitude_kernel(y, r_stop_nd, length_ref_m, out):  # pragma: no cover  (com
         out[i] = (y[i, 0] - r_stop_nd) * length_ref_m
 
 
+@numba.njit(cache=True)
+def _offset_kernel(y, dpos, dvel, dmass, L, V, M, out):  # pragma: no cover  (compiled)
+    """:meth:`PlanarTask.offset_states` in one loop (the navigated state of every decision)."""
+    for i in range(y.shape[0]):
+        r = y[i, 0] + dpos[i, 0] / L
+        v_t = y[i, 0] * y[i, 3] + dvel[i, 1] / V
+        out[i, 0] = r
+        out[i, 1] = y[i, 1] + dvel[i, 0] / V
+        out[i, 2] = y[i, 2] + dpos[i, 1] / L / y[i, 0]
+        out[i, 3] = v_t / r
+        out[i, 4] = y[i, 4] + dmass[i] / M
+
+
 def thrust_angle_from_action(action) -> np.ndarray:
     """Thrust angle to the local horizontal φ (rad) from the normalised action channel.
 
@@ -83,13 +97,15 @@ class PlanarTask(LandingTask):
     objects). Arguments: the env's (see the Arguments table of :class:`LunarSoftLandingEnv`)."""
 
     has_target = False
+    n_axes = 2
     model = integ.PLANAR
 
     def __init__(self, scenario: str | PlanarScenario = "zhu2007", dt_s: float = 1.0,
                  substeps: int = 2, time_limit_s: float | None = None,
                  throttle_channel: bool = False, success_speed_m_s: float = 5.0,
                  max_fall_s: float | None = None, cutoff_speed_m_s: float = 20.0,
-                 thrust_n: float | None = None) -> None:
+                 thrust_n: float | None = None,
+                 uncertainty: UncertaintyModel | str | dict | None = None) -> None:
         sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
         if not isinstance(sc, PlanarScenario):
             raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not planar; "
@@ -112,7 +128,7 @@ class PlanarTask(LandingTask):
             dt_s=dt_s, substeps=substeps, time_limit_s=time_limit_s, max_fall_s=max_fall_s,
             throttle_channel=throttle_channel, success_speed_m_s=success_speed_m_s,
             cutoff_speed_m_s=cutoff_speed_m_s, default_time_limit_s=1.5 * sc.tf_bounds_s[1])
-        super().__init__(sc, settings)
+        super().__init__(sc, settings, uncertainty)
         s = self.scaling
         self.r_stop_nd = float(s.length_nd(sc.surface_radius_m))
         self.altitude_scale_m = max(sc.initial.radius_m - sc.surface_radius_m, 1.0)
@@ -174,6 +190,22 @@ class PlanarTask(LandingTask):
     def speed_m_s(self, y: np.ndarray) -> np.ndarray:
         """Speed relative to the surface (m/s), shape (B,)."""
         return np.sqrt(y[:, 1] ** 2 + (y[:, 0] * y[:, 3]) ** 2) * self.velocity_ref_m_s
+
+    def offset_states(self, y: np.ndarray, dpos_m: np.ndarray, dvel_m_s: np.ndarray,
+                      dmass_kg: np.ndarray) -> np.ndarray:
+        """(r, vr, θ, ω, m) displaced along up (r), downrange (r·θ) and in mass; the
+        tangential velocity r·ω moves by the downrange velocity error. Crossrange is ignored."""
+        out = np.empty((len(y), 5))
+        _offset_kernel(np.ascontiguousarray(y, dtype=np.float64),
+                       np.ascontiguousarray(dpos_m, dtype=np.float64),
+                       np.ascontiguousarray(dvel_m_s, dtype=np.float64),
+                       np.ascontiguousarray(dmass_kg, dtype=np.float64), self.length_ref_m,
+                       self.velocity_ref_m_s, self.mass_ref_kg, out)
+        return out
+
+    def radius_nd(self, y: np.ndarray) -> np.ndarray:
+        """r (normalised), shape (B,)."""
+        return np.asarray(y)[:, 0]
 
     def altitude_m(self, y: np.ndarray) -> np.ndarray:
         """Altitude above the surface radius (m), shape (B,)."""

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from ..uncertainty import UncertaintyModel, resolve_uncertainty
 from ..validation import require_bool, require_finite_positive, require_integer
 
 __all__ = ["LandingTask", "StepSettings", "fall_steps", "float_array", "box"]
@@ -142,6 +143,8 @@ class LandingTask(metaclass=_FrozenAfterInit):
         Dynamics model (class attribute): ``n_state``, ``n_control`` and the compiled RHS.
     has_target : bool
         True for a pinpoint task: a miss distance is part of the verdict and the info.
+    n_axes : int
+        Spatial axes of the state: 2 (planar: up, downrange) or 3 (+ crossrange).
     charge_propellant_on_failure : bool
         A failed landing is also charged the propellant left (pinpoint v1/v2).
     gate_range_m : float or None
@@ -170,19 +173,25 @@ class LandingTask(metaclass=_FrozenAfterInit):
         Propellant capacity of the vehicle (kg): the fuel reward's unit.
     prop_nominal_nd : float
         Nominal propellant load (normalised mass): the observation's full fraction.
+    uncertainty : lunar_env.uncertainty.UncertaintyModel
+        The plant and navigation errors drawn per episode (the ``none`` set by default).
     action_space, observation_space : gymnasium.spaces.Box
         float32 spaces of one lander.
     """
 
     model: Any
     has_target: bool = False
+    #: spatial axes of the state (2: planar, up and downrange; 3: up, downrange, crossrange)
+    n_axes: int = 3
     charge_propellant_on_failure: bool = False
     gate_range_m: float | None = None
     r_stop_nd: float
     action_space: spaces.Box
     observation_space: spaces.Box
 
-    def __init__(self, scenario: Any, settings: StepSettings) -> None:
+    def __init__(self, scenario: Any, settings: StepSettings,
+                 uncertainty: UncertaintyModel | str | dict | None = None) -> None:
+        self.uncertainty = resolve_uncertainty(uncertainty)
         self.scenario = scenario
         self.settings = settings
         self.scaling = s = scenario.scaling()
@@ -269,6 +278,18 @@ class LandingTask(metaclass=_FrozenAfterInit):
     def physical_constants(self) -> dict[str, float]:
         """SI constants of the lander and the body that policies may use (derived features);
         each key carries its unit."""
+
+    @abc.abstractmethod
+    def offset_states(self, y: np.ndarray, dpos_m: np.ndarray, dvel_m_s: np.ndarray,
+                      dmass_kg: np.ndarray) -> np.ndarray:
+        """States ``y`` (B, n_state) displaced by position errors ``dpos_m`` (B, 3) and
+        velocity errors ``dvel_m_s`` (B, 3) along the local (up, downrange, crossrange) axes (m,
+        m/s; a planar task ignores crossrange) and mass errors ``dmass_kg`` (B,) (kg); a new
+        array. Downrange is the direction of the scenario's initial motion."""
+
+    @abc.abstractmethod
+    def radius_nd(self, y: np.ndarray) -> np.ndarray:
+        """Distance from the body's centre (normalised), shape (B,)."""
 
     # -- geometry and verdict -------------------------------------------------------------------
     @abc.abstractmethod

@@ -44,7 +44,7 @@ import numba
 import numpy as np
 
 from lunar_env import get_scenario
-from lunar_env.integrators import PLANAR, integrate, integrate_prepared
+from lunar_env.integrators import PLANAR, integrate, integrate_prepared, params_rows
 from lunar_env.scenarios import PlanarScenario
 
 from ..common.problem import PenaltyGroup, Problem, central_difference_jacobian
@@ -221,7 +221,7 @@ class PlanarLandingProblem(Problem):
         consts = self._consts.get(n)
         if consts is None:
             consts = (np.ascontiguousarray(np.broadcast_to(self.y0_nd, (n, 5))), np.zeros(n),
-                      np.full(n, np.nan), self.params.as_array(),
+                      np.full(n, np.nan), params_rows(self.params, n),
                       self.parallel if self.parallel is not None else
                       (n >= _PARALLEL_MIN_BATCH and numba.config.NUMBA_NUM_THREADS > 1))
             if len(self._consts) > 16:

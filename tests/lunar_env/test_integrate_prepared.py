@@ -29,7 +29,7 @@ def test_integrate_prepared_equals_integrate(name):
                           events=(integ.RadiusCrossing(r_stop), integ.SpeedMinimum()))
     for parallel in (False, True):
         y, t, st, tb = integ.integrate_prepared(
-            model, y0, t0, h, 300, ctrl.breaks, ctrl.coefs, params.as_array(), dry,
+            model, y0, t0, h, 300, ctrl.breaks, ctrl.coefs, integ.params_rows(params, len(y0)), dry,
             np.full(40, r_stop), True, parallel)
         np.testing.assert_array_equal(y, ref.y_end)
         np.testing.assert_array_equal(t, ref.t_end)
@@ -39,7 +39,7 @@ def test_integrate_prepared_equals_integrate(name):
         out = (np.full_like(y0, np.nan), np.full(40, -1.0), np.full(40, 7, dtype=np.int64),
                np.zeros(40))
         got = integ.integrate_prepared(
-            model, y0, t0, h, 300, ctrl.breaks, ctrl.coefs, params.as_array(), dry,
+            model, y0, t0, h, 300, ctrl.breaks, ctrl.coefs, integ.params_rows(params, len(y0)), dry,
             np.full(40, r_stop), True, parallel, out=out)
         assert all(g is o for g, o in zip(got, out, strict=True))
         for g, r in zip(got, (ref.y_end, ref.t_end, ref.status, ref.t_burnout), strict=True):

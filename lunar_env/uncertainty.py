@@ -1,0 +1,530 @@
+"""Plant and navigation errors: the uncertainty model of the landing envs (SI, 1σ).
+
+A GNC engineer judges a guidance law by Monte Carlo campaigns over the errors of the real
+world. :class:`UncertaintyModel` is a frozen, validated set of 1σ errors that the envs draw
+once per episode (and, for navigation noise, once per decision):
+
+**Entry** (the state at powered-descent initiation): position errors along the local up,
+downrange and crossrange axes (m) and velocity errors along the same axes (m/s), added to the
+planned start (the scenario's dispersed draw, or the state pinned by ``reset`` options).
+
+**Plant**: thrust scale error (relative, 1σ), specific-impulse scale error (relative),
+thrust-direction misalignment (rad, a fixed bias per episode on each gimbal angle: the planar
+thrust angle φ; the pinpoint elevation α and azimuth β), and initial wet-mass error (kg). The
+flight computer is not told any of them.
+
+**Navigation**: the observation encodes the *navigated* state, the truth plus a bias per
+episode and white noise per decision, in position (m) and velocity (m/s) along up, downrange,
+crossrange. Before a landing radar acquires the ground, navigation propagates the orbit
+determination and is worst at altitude; ``radar_altitude_m`` is where the radar starts to
+help: below it both the bias and the noise shrink linearly with altitude to
+``near_ground_fraction`` of themselves at the surface. The flight computer's mass estimate
+is the planned initial mass minus the propellant it believes burnt, so it misses by the wet
+mass error (a constant offset).
+
+Every draw is a standard normal truncated at ±:data:`TRUNCATION_SIGMA` times its σ, so the
+plant scale factors stay positive and a single freak draw cannot dominate a campaign's tail.
+
+**Common random numbers.** The errors of an episode come from a stream of their own, seeded by
+the episode's reset seed (:func:`error_stream`): case k of a campaign (sub-env k reset with
+``seed + k``) sees the same errors whatever the number of landers, the workers or the law
+flown, and the same standard-normal draws under every scale of the model
+(:meth:`UncertaintyModel.scaled`), so a robustness curve is smooth. The per-decision noise is
+a counter-based function of the episode's key and the decision index
+(:func:`navigation_noise`), so it too is the same whatever the batch.
+
+Named sets (:data:`NAMED_SETS`): ``none`` (no error at all; the envs are bit for bit those
+without the model), ``standard`` and ``stress`` (3 × standard). Build your own the same way::
+
+    from lunar_env.uncertainty import UncertaintyModel, get_uncertainty
+    mine = get_uncertainty("standard").replace(thrust_scale=0.05)
+    env = gym.make("LunarSoftLanding-v0", uncertainty=mine)      # or uncertainty="standard"
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numba
+import numpy as np
+
+from .validation import InvalidTypeError, require_number
+
+__all__ = ["UncertaintyModel", "EpisodeErrors", "NAMED_SETS", "get_uncertainty",
+           "resolve_uncertainty", "error_stream", "draw_errors", "navigation_noise",
+           "radar_weight", "errors_from_option", "navigation_errors",
+           "TRUNCATION_SIGMA", "N_NORMALS"]
+
+#: every error draw is a standard normal truncated at this many σ
+TRUNCATION_SIGMA = 4.5
+#: standard normals drawn per episode, in this order: entry position (3), entry velocity (3),
+#: thrust, Isp, misalignment (2), wet mass, navigation position bias (3), velocity bias (3)
+N_NORMALS = 17
+#: spawn key separating the error stream from the env's initial-state stream of the same seed
+_ERROR_STREAM_KEY = 0x5EED_E770
+
+
+def _vec3(name: str, value) -> tuple[float, float, float]:
+    try:
+        items = tuple(value)
+    except TypeError:
+        raise InvalidTypeError(f"UncertaintyModel.{name} = {value!r} is not a sequence of 3 "
+                               "numbers (up, downrange, crossrange)") from None
+    if len(items) != 3:
+        raise ValueError(f"UncertaintyModel.{name} = {value!r} has {len(items)} components; "
+                         "3 are required (up, downrange, crossrange)")
+    return tuple(_sigma(f"{name}[{i}]", v) for i, v in enumerate(items))
+
+
+def _sigma(name: str, value) -> float:
+    v = require_number(f"UncertaintyModel.{name}", value)
+    if not math.isfinite(v) or v < 0.0:
+        raise ValueError(f"UncertaintyModel.{name} = {value!r} is not allowed; a 1σ error must "
+                         "be finite and >= 0")
+    return v
+
+
+_VECTORS = ("entry_position_m", "entry_velocity_m_s", "nav_position_bias_m",
+            "nav_velocity_bias_m_s", "nav_position_noise_m", "nav_velocity_noise_m_s")
+_SCALES = ("thrust_scale", "isp_scale")
+
+
+@dataclass(frozen=True)
+class UncertaintyModel:
+    """1σ errors of the plant and of navigation (SI; see the module docstring).
+
+    Attributes
+    ----------
+    name : str
+        Label in reports (``"custom"`` for a user's set).
+    entry_position_m, entry_velocity_m_s : (float, float, float)
+        Start-state errors along (up, downrange, crossrange) (m, m/s). The planar env has no
+        crossrange: its third component is ignored.
+    thrust_scale, isp_scale : float
+        Relative 1σ errors of the maximum thrust and of the specific impulse (< 0.2).
+    misalignment_rad : float
+        1σ bias of each gimbal angle (rad), fixed per episode.
+    mass_kg : float
+        1σ error of the initial wet mass (kg).
+    nav_position_bias_m, nav_velocity_bias_m_s : (float, float, float)
+        1σ navigation bias per episode, at altitude (m, m/s).
+    nav_position_noise_m, nav_velocity_noise_m_s : (float, float, float)
+        1σ navigation white noise per decision, at altitude (m, m/s).
+    radar_altitude_m : float
+        Altitude (m) below which navigation errors shrink linearly to
+        ``near_ground_fraction`` at the surface (``inf``: never, shrinking from any height;
+        use a huge finite value for "no radar" instead, or ``near_ground_fraction = 1``).
+    near_ground_fraction : float
+        Navigation errors at the surface as a fraction of those at altitude, in [0, 1].
+    """
+
+    name: str = "custom"
+    entry_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    entry_velocity_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    thrust_scale: float = 0.0
+    isp_scale: float = 0.0
+    misalignment_rad: float = 0.0
+    mass_kg: float = 0.0
+    nav_position_bias_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    nav_velocity_bias_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    nav_position_noise_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    nav_velocity_noise_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    radar_altitude_m: float = 1.0e9
+    near_ground_fraction: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise InvalidTypeError(f"UncertaintyModel.name = {self.name!r} must be a non-empty "
+                                   "string")
+        for f in _VECTORS:
+            object.__setattr__(self, f, _vec3(f, getattr(self, f)))
+        for f in ("thrust_scale", "isp_scale", "misalignment_rad", "mass_kg"):
+            object.__setattr__(self, f, _sigma(f, getattr(self, f)))
+        for f in _SCALES:
+            if getattr(self, f) >= 0.2:
+                raise ValueError(f"UncertaintyModel.{f} = {getattr(self, f)!r} is not allowed; "
+                                 "a relative 1σ error must be < 0.2 (the engine must keep "
+                                 "a positive thrust and Isp within the truncation)")
+        if self.misalignment_rad >= 0.2:
+            raise ValueError(f"UncertaintyModel.misalignment_rad = {self.misalignment_rad!r} is "
+                             "not allowed; it must be < 0.2 rad (a small-angle bias)")
+        r = require_number("UncertaintyModel.radar_altitude_m", self.radar_altitude_m)
+        if not (math.isfinite(r) and r > 0.0):
+            raise ValueError(f"UncertaintyModel.radar_altitude_m = {self.radar_altitude_m!r} is "
+                             "not allowed; it must be finite and > 0 (m)")
+        object.__setattr__(self, "radar_altitude_m", r)
+        f = require_number("UncertaintyModel.near_ground_fraction", self.near_ground_fraction)
+        if not 0.0 <= f <= 1.0:
+            raise ValueError(f"UncertaintyModel.near_ground_fraction = "
+                             f"{self.near_ground_fraction!r} is not allowed; it must be in "
+                             "[0, 1]")
+        object.__setattr__(self, "near_ground_fraction", f)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> UncertaintyModel:
+        """From a dict of fields; ``"base": NAME`` starts from a named set and ``"scale": k``
+        multiplies every σ (applied after the other fields). Unknown keys are refused."""
+        if not isinstance(d, dict):
+            raise InvalidTypeError(f"uncertainty settings {d!r} must be a dict")
+        d = dict(d)
+        base = d.pop("base", None)
+        scale = d.pop("scale", None)
+        allowed = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - allowed)
+        if unknown:
+            raise ValueError(f"unknown uncertainty setting(s) {', '.join(map(repr, unknown))}; "
+                             f"allowed: base, scale, {', '.join(sorted(allowed))}")
+        model = get_uncertainty(base) if base is not None else cls()
+        if d:
+            model = model.replace(**({"name": "custom"} | d))
+        if scale is not None:
+            model = model.scaled(scale)
+        return model
+
+    def replace(self, **changes: Any) -> UncertaintyModel:
+        """A validated copy with ``changes`` (field names as keyword arguments)."""
+        allowed = {f.name for f in fields(self)}
+        unknown = sorted(set(changes) - allowed)
+        if unknown:
+            raise ValueError(f"unknown uncertainty setting(s) {', '.join(map(repr, unknown))}; "
+                             f"allowed: {', '.join(sorted(allowed))}")
+        return dataclasses.replace(self, **changes)
+
+    def scaled(self, k: float) -> UncertaintyModel:
+        """Every σ multiplied by ``k`` >= 0 (the radar altitude and the near-ground fraction
+        are kept); named ``"<name>×k"``. ``scaled(0)`` has no error at all."""
+        k = require_number("scale", k)
+        if not (math.isfinite(k) and k >= 0.0):
+            raise ValueError(f"scale = {k!r} is not allowed; it must be finite and >= 0")
+        ch: dict[str, Any] = {f: tuple(k * v for v in getattr(self, f)) for f in _VECTORS}
+        for f in ("thrust_scale", "isp_scale", "misalignment_rad", "mass_kg"):
+            ch[f] = k * getattr(self, f)
+        return dataclasses.replace(self, name=f"{self.name}×{k:g}", **ch)
+
+    @property
+    def is_null(self) -> bool:
+        """True if every σ is zero (the env then runs exactly as without the model)."""
+        return (all(v == 0.0 for f in _VECTORS for v in getattr(self, f))
+                and self.thrust_scale == self.isp_scale == self.misalignment_rad
+                == self.mass_kg == 0.0)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready fields (lists for the vectors)."""
+        return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
+                for f in fields(self)}
+
+
+# -------------------------------------------------------------------------------------------
+# Named sets
+# -------------------------------------------------------------------------------------------
+#
+# The public powered-descent Monte Carlo set we start from (1σ: thrust 2 %, Isp 1 %,
+# misalignment 0.2°, wet mass 100 kg, position 20–30 m, velocity 2–3 m/s) is for a terminal
+# descent with its navigation sensors on. Scaled to a lunar descent from 15 km:
+_STANDARD = UncertaintyModel(
+    name="standard",
+    # Orbit determination from Earth tracking delivers the powered-descent-initiation state
+    # to about a kilometre downrange (Apollo's landing-site offsets were of this order), a few
+    # hundred metres in altitude and crossrange, and ~1 m/s in velocity: kilometres and metres
+    # per second, not the reference's terminal-phase metres.
+    entry_position_m=(300.0, 1000.0, 500.0),
+    entry_velocity_m_s=(1.0, 1.5, 1.0),
+    # Engine items are properties of the engine, not of the body: kept as published.
+    thrust_scale=0.02,
+    isp_scale=0.01,
+    misalignment_rad=math.radians(0.2),
+    # 100 kg is ~5 % of the reference's ~2 t vehicle; a 600 kg lander that has flown to the
+    # Moon knows its mass from its propellant gauging to ~1 %: 6 kg.
+    mass_kg=6.0,
+    # Before the landing radar, navigation propagates the orbit solution with the IMU: worse
+    # than the reference's radar-aided 20–30 m / 2–3 m/s in position, better in velocity
+    # (accelerometers integrate well over minutes).
+    nav_position_bias_m=(100.0, 200.0, 200.0),
+    nav_velocity_bias_m_s=(0.5, 0.5, 0.5),
+    nav_position_noise_m=(10.0, 10.0, 10.0),
+    nav_velocity_noise_m_s=(0.1, 0.1, 0.1),
+    # A landing radar acquires the surface at a few kilometres and takes navigation near the
+    # ground to the reference's metres: errors shrink to 10 % at the surface.
+    radar_altitude_m=3000.0,
+    near_ground_fraction=0.1,
+)
+
+#: named uncertainty sets: ``none``, ``standard``, ``stress`` (3 × standard)
+NAMED_SETS: dict[str, UncertaintyModel] = {
+    "none": UncertaintyModel(name="none"),
+    "standard": _STANDARD,
+    "stress": dataclasses.replace(_STANDARD.scaled(3.0), name="stress"),
+}
+
+
+def get_uncertainty(name: str) -> UncertaintyModel:
+    """The named set ``name`` (``none``, ``standard``, ``stress``)."""
+    if not isinstance(name, str) or name not in NAMED_SETS:
+        raise ValueError(f"unknown uncertainty set {name!r}; named sets: "
+                         f"{', '.join(NAMED_SETS)} (or pass an UncertaintyModel or a dict)")
+    return NAMED_SETS[name]
+
+
+def resolve_uncertainty(value) -> UncertaintyModel:
+    """An env's ``uncertainty`` argument as a model: None or a name, a model, or a dict of
+    fields (:meth:`UncertaintyModel.from_dict`)."""
+    if value is None:
+        return NAMED_SETS["none"]
+    if isinstance(value, UncertaintyModel):
+        return value
+    if isinstance(value, str):
+        return get_uncertainty(value)
+    if isinstance(value, dict):
+        return UncertaintyModel.from_dict(value)
+    raise InvalidTypeError(f"uncertainty = {value!r} is not allowed; pass a set name "
+                           f"({', '.join(NAMED_SETS)}), an UncertaintyModel or a dict of its "
+                           "fields")
+
+
+# -------------------------------------------------------------------------------------------
+# Draws
+# -------------------------------------------------------------------------------------------
+
+
+def error_stream(seed: int | None) -> np.random.Generator:
+    """The error generator of an episode reset with ``seed`` (fresh entropy for None): separate
+    from the initial-state stream of the same seed, so the planned starts are those of the
+    env without errors."""
+    if seed is None:
+        return np.random.default_rng()
+    return np.random.default_rng(np.random.SeedSequence(int(seed),
+                                                        spawn_key=(_ERROR_STREAM_KEY,)))
+
+
+@dataclass
+class EpisodeErrors:
+    """The errors of n episodes (arrays along axis 0), SI.
+
+    Attributes
+    ----------
+    entry_position_m, entry_velocity_m_s : ndarray (n, 3)
+        Start-state errors along (up, downrange, crossrange).
+    thrust_scale, isp_scale : ndarray (n,)
+        True / nominal thrust and Isp.
+    misalignment_rad : ndarray (n, 2)
+        Bias of each gimbal angle (planar: the first is φ's).
+    mass_error_kg : ndarray (n,)
+        True minus planned initial mass.
+    nav_position_bias_m, nav_velocity_bias_m_s : ndarray (n, 3)
+        Navigation bias at altitude.
+    noise_key : ndarray (n,) uint64
+        Key of the per-decision navigation noise (:func:`navigation_noise`).
+    """
+
+    entry_position_m: np.ndarray
+    entry_velocity_m_s: np.ndarray
+    thrust_scale: np.ndarray
+    isp_scale: np.ndarray
+    misalignment_rad: np.ndarray
+    mass_error_kg: np.ndarray
+    nav_position_bias_m: np.ndarray
+    nav_velocity_bias_m_s: np.ndarray
+    noise_key: np.ndarray
+
+    @classmethod
+    def zeros(cls, n: int) -> EpisodeErrors:
+        """No error for n episodes."""
+        z3 = np.zeros((n, 3))
+        return cls(z3.copy(), z3.copy(), np.ones(n), np.ones(n), np.zeros((n, 2)), np.zeros(n),
+                   z3.copy(), z3.copy(), np.zeros(n, dtype=np.uint64))
+
+    def set_row(self, i: int, other: EpisodeErrors) -> None:
+        """Row i from the one-row ``other``."""
+        for f in fields(self):
+            getattr(self, f.name)[i] = getattr(other, f.name)[0]
+
+    def take(self, idx) -> EpisodeErrors:
+        """Rows ``idx`` (copies)."""
+        return EpisodeErrors(*(np.array(getattr(self, f.name)[idx]) for f in fields(self)))
+
+    def as_dict(self) -> dict[str, np.ndarray]:
+        """Field name -> array."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+def draw_errors(model: UncertaintyModel, rng: np.random.Generator) -> EpisodeErrors:
+    """One episode's errors from ``rng`` (one row). Always consumes the same draws
+    (:data:`N_NORMALS` normals, then one 64-bit key) whatever the σ, so every scale of a model
+    sees the same standard-normal draws."""
+    z = np.clip(rng.standard_normal(N_NORMALS), -TRUNCATION_SIGMA, TRUNCATION_SIGMA)
+    key = rng.integers(0, np.iinfo(np.uint64).max, dtype=np.uint64, endpoint=True)
+    m = model
+    return EpisodeErrors(
+        entry_position_m=(z[0:3] * np.asarray(m.entry_position_m))[None],
+        entry_velocity_m_s=(z[3:6] * np.asarray(m.entry_velocity_m_s))[None],
+        thrust_scale=np.array([1.0 + z[6] * m.thrust_scale]),
+        isp_scale=np.array([1.0 + z[7] * m.isp_scale]),
+        misalignment_rad=(z[8:10] * m.misalignment_rad)[None],
+        mass_error_kg=np.array([z[10] * m.mass_kg]),
+        nav_position_bias_m=(z[11:14] * np.asarray(m.nav_position_bias_m))[None],
+        nav_velocity_bias_m_s=(z[14:17] * np.asarray(m.nav_velocity_bias_m_s))[None],
+        noise_key=np.array([key], dtype=np.uint64),
+    )
+
+
+# -------------------------------------------------------------------------------------------
+# Per-decision navigation noise: counter-based, so it does not depend on the batch
+# -------------------------------------------------------------------------------------------
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+_S30 = np.uint64(30)
+_S27 = np.uint64(27)
+_S31 = np.uint64(31)
+
+
+@numba.njit(cache=True)
+def _splitmix64(x):  # pragma: no cover  (compiled)
+    z = x + _GOLDEN
+    z = (z ^ (z >> _S30)) * _MIX1
+    z = (z ^ (z >> _S27)) * _MIX2
+    return z ^ (z >> _S31)
+
+
+_S32 = np.uint64(32)
+_LOW32 = np.uint64(0xFFFFFFFF)
+_TWO32_INV = 1.0 / 4294967296.0
+
+
+# Acklam's rational approximation of the normal quantile (relative error < 1.2e-9): the
+# central 95 % of draws cost a dozen flops and no transcendental function, which is what keeps
+# per-decision noise for thousands of landers cheap next to the integration.
+_A = (-3.969683028665376e+01, 2.209460984245205e+02, -2.759285104469687e+02,
+      1.383577518672690e+02, -3.066479806614716e+01, 2.506628277459239e+00)
+_B = (-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
+      6.680131188771972e+01, -1.328068155288572e+01)
+_C = (-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
+      -2.549732539343734e+00, 4.374664141464968e+00, 2.938163982698783e+00)
+_D = (7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
+      3.754408661907416e+00)
+_P_LOW = 0.02425
+
+
+@numba.njit(cache=True)
+def _normal_quantile(p):  # pragma: no cover  (compiled)
+    """Φ⁻¹(p) for p in (0, 1) (Acklam's algorithm)."""
+    if p < _P_LOW or p > 1.0 - _P_LOW:
+        q = math.sqrt(-2.0 * math.log(p if p < 0.5 else 1.0 - p))
+        x = ((((( _C[0] * q + _C[1]) * q + _C[2]) * q + _C[3]) * q + _C[4]) * q + _C[5]) \
+            / ((((_D[0] * q + _D[1]) * q + _D[2]) * q + _D[3]) * q + 1.0)
+        return x if p < 0.5 else -x
+    q = p - 0.5
+    r = q * q
+    return (((((_A[0] * r + _A[1]) * r + _A[2]) * r + _A[3]) * r + _A[4]) * r + _A[5]) * q \
+        / (((((_B[0] * r + _B[1]) * r + _B[2]) * r + _B[3]) * r + _B[4]) * r + 1.0)
+
+
+@numba.njit(cache=True)
+def _noise_kernel(keys, counters, out):  # pragma: no cover  (compiled)
+    """Two normals per 64-bit hash: each 32-bit half is a uniform (k + ½)/2³² in (0, 1),
+    mapped through the normal quantile and truncated at ±TRUNCATION_SIGMA."""
+    n, m = out.shape
+    for i in range(n):
+        base = _splitmix64(keys[i] ^ _splitmix64(np.uint64(counters[i])))
+        for j in range(0, m, 2):
+            h = _splitmix64(base + np.uint64(j + 1))
+            z0 = _normal_quantile((np.float64(h >> _S32) + 0.5) * _TWO32_INV)
+            out[i, j] = min(max(z0, -TRUNCATION_SIGMA), TRUNCATION_SIGMA)
+            if j + 1 < m:
+                z1 = _normal_quantile((np.float64(h & _LOW32) + 0.5) * _TWO32_INV)
+                out[i, j + 1] = min(max(z1, -TRUNCATION_SIGMA), TRUNCATION_SIGMA)
+
+
+def navigation_noise(keys: np.ndarray, counters: np.ndarray, n_components: int = 6
+                     ) -> np.ndarray:
+    """Standard normals (n, n_components), truncated at ±4.5, of episodes with noise keys
+    ``keys`` (n,) uint64 at decision indices ``counters`` (n,): a pure function of (key,
+    counter, component), so a lander's noise does not depend on the batch it flies in, and
+    component j is the same whatever ``n_components``. The navigation errors read them
+    interleaved: (position up, velocity up, position downrange, velocity downrange, position
+    crossrange, velocity crossrange)."""
+    out = np.empty((len(keys), int(n_components)))
+    _noise_kernel(np.ascontiguousarray(keys, dtype=np.uint64),
+                  np.ascontiguousarray(counters, dtype=np.int64), out)
+    return out
+
+
+@numba.njit(cache=True)
+def _navigation_errors_kernel(keys, counters, altitude_m, bias_p, bias_v, sig_p, sig_v,
+                              radar_altitude_m, near_fraction, n_axes, dpos, dvel
+                              ):  # pragma: no cover  (compiled)
+    z = np.empty((keys.shape[0], 2 * n_axes))
+    _noise_kernel(keys, counters, z)
+    for i in range(keys.shape[0]):
+        h = min(max(altitude_m[i] / radar_altitude_m, 0.0), 1.0)
+        w = near_fraction + (1.0 - near_fraction) * h
+        for j in range(3):
+            if j < n_axes:
+                dpos[i, j] = w * (bias_p[i, j] + z[i, 2 * j] * sig_p[j])
+                dvel[i, j] = w * (bias_v[i, j] + z[i, 2 * j + 1] * sig_v[j])
+            else:
+                dpos[i, j] = 0.0
+                dvel[i, j] = 0.0
+
+
+def navigation_errors(model: UncertaintyModel, errors: EpisodeErrors, counters: np.ndarray,
+                      altitude_m: np.ndarray, n_axes: int = 3
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Position and velocity navigation errors (n, 3) each, along (up, downrange, crossrange)
+    (m, m/s), of episodes with ``errors`` at decision indices ``counters`` (n,) and true
+    altitudes ``altitude_m`` (n,): (bias + σ_noise · :func:`navigation_noise`) ×
+    :func:`radar_weight`, in one compiled loop. ``n_axes`` = 2 (a planar task) leaves the
+    crossrange components 0 and draws no noise for them."""
+    n = len(counters)
+    dpos = np.empty((n, 3))
+    dvel = np.empty((n, 3))
+    _navigation_errors_kernel(errors.noise_key, np.ascontiguousarray(counters, dtype=np.int64),
+                              np.ascontiguousarray(altitude_m, dtype=np.float64),
+                              errors.nav_position_bias_m, errors.nav_velocity_bias_m_s,
+                              np.asarray(model.nav_position_noise_m),
+                              np.asarray(model.nav_velocity_noise_m_s), model.radar_altitude_m,
+                              model.near_ground_fraction, int(n_axes), dpos, dvel)
+    return dpos, dvel
+
+
+def radar_weight(model: UncertaintyModel, altitude_m: np.ndarray) -> np.ndarray:
+    """Navigation error multiplier at ``altitude_m`` (n,): 1 above the radar altitude, falling
+    linearly to ``near_ground_fraction`` at the surface."""
+    h = np.clip(np.asarray(altitude_m, dtype=np.float64) / model.radar_altitude_m, 0.0, 1.0)
+    f = model.near_ground_fraction
+    return f + (1.0 - f) * h
+
+
+def errors_from_option(value, row: int | None = None) -> EpisodeErrors:
+    """One episode's errors pinned by ``reset(options={"errors": value})``: a dict of
+    :class:`EpisodeErrors` fields (SI; absent fields mean no error: scales 1, the rest 0), each
+    a single value or, for a vector env (``row`` given), one value per sub-env along a leading
+    axis. Unknown fields, non-finite values and non-positive scales are refused."""
+    if not isinstance(value, dict):
+        raise InvalidTypeError(f"options['errors'] = {value!r} must be a dict of episode-error "
+                               f"fields ({', '.join(f.name for f in fields(EpisodeErrors))})")
+    e = EpisodeErrors.zeros(1)
+    names = {f.name for f in fields(EpisodeErrors)}
+    unknown = sorted(set(value) - names)
+    if unknown:
+        raise ValueError(f"options['errors'] has unknown field(s) {', '.join(map(repr, unknown))};"
+                         f" allowed: {', '.join(sorted(names))}")
+    for k, v in value.items():
+        target = getattr(e, k)
+        arr = np.asarray(v, dtype=np.uint64 if k == "noise_key" else np.float64)
+        want = target.shape[1:]
+        if row is not None and arr.shape[1:] == want and arr.ndim == len(want) + 1:
+            arr = arr[row]
+        if arr.shape != want:
+            raise ValueError(f"options['errors'][{k!r}] has shape {arr.shape}; expected {want}"
+                             + ("" if row is None else f" or (num_envs, *{want})"))
+        if k != "noise_key" and not np.all(np.isfinite(arr)):
+            raise ValueError(f"options['errors'][{k!r}] = {v!r} is not finite")
+        if k in ("thrust_scale", "isp_scale") and not arr > 0.0:
+            raise ValueError(f"options['errors'][{k!r}] = {v!r} must be > 0 (a scale factor)")
+        target[0] = arr
+    return e

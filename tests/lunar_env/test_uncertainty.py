@@ -1,0 +1,272 @@
+"""The uncertainty model: validation, common random numbers, navigated observations, and each
+plant error against physics."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import lunar_env  # noqa: F401
+from lunar_env import uncertainty as unc
+from lunar_env.integrators import integrate_reference
+from lunar_env.uncertainty import UncertaintyModel, get_uncertainty
+
+IDS = ("LunarSoftLanding-v0", "LunarPinpointLanding-v2")
+
+
+# -- validation ----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("bad, field", [
+    ({"thrust_scale": -0.01}, "thrust_scale"),
+    ({"isp_scale": float("nan")}, "isp_scale"),
+    ({"mass_kg": float("inf")}, "mass_kg"),
+    ({"entry_position_m": (1.0, -2.0, 3.0)}, "entry_position_m[1]"),
+    ({"nav_velocity_noise_m_s": (1.0, 2.0)}, "nav_velocity_noise_m_s"),
+    ({"near_ground_fraction": 1.5}, "near_ground_fraction"),
+    ({"radar_altitude_m": 0.0}, "radar_altitude_m"),
+    ({"thrust_scale": 0.3}, "thrust_scale"),
+    ({"misalignment_rad": "0.1"}, "misalignment_rad"),
+])
+def test_bad_settings_are_refused_with_the_field_named(bad, field):
+    with pytest.raises(ValueError, match=field.replace("[", r"\[").replace("]", r"\]")):
+        UncertaintyModel(**bad)
+    with pytest.raises(ValueError, match=field.split("[")[0]):
+        gym.make("LunarSoftLanding-v0", uncertainty=bad)
+
+
+def test_unknown_keys_and_names_are_refused():
+    with pytest.raises(ValueError, match="'thrust'"):
+        UncertaintyModel.from_dict({"thrust": 0.02})
+    with pytest.raises(ValueError, match="unknown uncertainty set 'big'"):
+        gym.make("LunarSoftLanding-v0", uncertainty="big")
+    with pytest.raises(TypeError, match="uncertainty = 3"):
+        gym.make("LunarSoftLanding-v0", uncertainty=3)
+    env = gym.make("LunarSoftLanding-v0")
+    with pytest.raises(ValueError, match="needs an env with an uncertainty model"):
+        env.reset(options={"errors": {"thrust_scale": 0.98}})
+    env = gym.make("LunarSoftLanding-v0", uncertainty="standard")
+    with pytest.raises(ValueError, match="'thrust'"):
+        env.reset(options={"errors": {"thrust": 0.98}})
+    with pytest.raises(ValueError, match="must be > 0"):
+        env.reset(options={"errors": {"isp_scale": 0.0}})
+
+
+def test_named_sets_and_scaling():
+    std = get_uncertainty("standard")
+    assert get_uncertainty("none").is_null and not std.is_null
+    stress = get_uncertainty("stress")
+    assert stress.thrust_scale == pytest.approx(3 * std.thrust_scale)
+    assert stress.nav_position_bias_m == pytest.approx(tuple(3 * v for v in
+                                                             std.nav_position_bias_m))
+    assert std.scaled(0.0).is_null
+    d = UncertaintyModel.from_dict({"base": "standard", "scale": 2, "mass_kg": 1.0})
+    assert d.mass_kg == 2.0 and d.thrust_scale == pytest.approx(0.04)
+    # a model is frozen and rebuilt validated
+    with pytest.raises(ValueError, match="thrust_scale"):
+        std.replace(thrust_scale=-1.0)
+
+
+# -- none: the env as it was ------------------------------------------------------------------
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_none_is_the_env_without_the_model(env_id):
+    """Quick twin of ``benchmarks/record_episodes.py compare`` (which checks every id and
+    setting against a recording of the commit before the model)."""
+    runs = []
+    for kw in ({}, {"uncertainty": "none"}, {"uncertainty": get_uncertainty("standard").scaled(0)}):
+        env = gym.make(env_id, **kw)
+        obs, info = env.reset(seed=11)
+        rng = np.random.default_rng(0)
+        out = [obs]
+        for _ in range(30):
+            obs, r, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_space.shape))
+            out += [obs, np.array([r]), np.array([term, trunc])]
+            assert "navigation_state_nd" not in info
+        runs.append(np.concatenate([np.ravel(x).astype(np.float64) for x in out]))
+    np.testing.assert_array_equal(runs[0], runs[1])
+    np.testing.assert_array_equal(runs[0], runs[2])
+
+
+# -- common random numbers -------------------------------------------------------------------
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_case_k_errors_do_not_depend_on_the_batch(env_id):
+    """Case k (sub-env k reset with seed + k) gets the same errors, start and navigation noise
+    in vector envs of any size and in a single env reset with seed + k."""
+    seed, steps = 100, 5
+    act_rng = np.random.default_rng(1)
+    actions = act_rng.uniform(-1, 1, (steps, 7, 3))
+    results = {}
+    for n in (3, 7):
+        v = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
+                         uncertainty="standard")
+        obs, _ = v.reset(seed=seed)
+        nact = v.single_action_space.shape[0]
+        errs = v.unwrapped.episode_errors
+        traj = [obs]
+        for s in range(steps):
+            obs, *_ = v.step(actions[s, :n, :nact])
+            traj.append(obs)
+        results[n] = (errs, np.stack(traj, 1))
+    e3, t3 = results[3]
+    e7, t7 = results[7]
+    for k, a in e3.as_dict().items():
+        np.testing.assert_array_equal(a, getattr(e7, k)[:3], err_msg=k)
+    np.testing.assert_array_equal(t3, t7[:3])
+    env = gym.make(env_id, uncertainty="standard")
+    for k in (0, 2):
+        obs, _ = env.reset(seed=seed + k)
+        single = [obs]
+        for s in range(steps):
+            obs, *_ = env.step(actions[s, k, :nact])
+            single.append(obs)
+        np.testing.assert_array_equal(np.stack(single), t3[k])
+        np.testing.assert_array_equal(env.unwrapped.episode_errors.thrust_scale,
+                                      e3.thrust_scale[k:k + 1])
+    # the planned starts are those of the env without errors (a separate stream)
+    plain = gym.make(env_id)
+    plain.reset(seed=seed)
+    env.reset(seed=seed)
+    assert not np.array_equal(plain.unwrapped.state_nd, env.unwrapped.state_nd)
+
+
+def test_every_scale_sees_the_same_standard_normals():
+    std = get_uncertainty("standard")
+    a = unc.draw_errors(std, unc.error_stream(5))
+    b = unc.draw_errors(std.scaled(2.0), unc.error_stream(5))
+    np.testing.assert_allclose(b.thrust_scale - 1, 2 * (a.thrust_scale - 1), rtol=1e-12)
+    np.testing.assert_allclose(b.nav_position_bias_m, 2 * a.nav_position_bias_m, rtol=1e-12)
+    np.testing.assert_array_equal(a.noise_key, b.noise_key)
+
+
+def test_navigation_noise_is_a_pure_function_of_key_and_counter():
+    keys = np.array([3, 99, 2**63 + 5], dtype=np.uint64)
+    c = np.array([0, 7, 12])
+    z = unc.navigation_noise(keys, c)
+    np.testing.assert_array_equal(unc.navigation_noise(keys[1:2], c[1:2]), z[1:2])
+    np.testing.assert_array_equal(unc.navigation_noise(keys, c, 4), z[:, :4])
+    big = unc.navigation_noise(np.arange(40000, dtype=np.uint64), np.zeros(40000, np.int64))
+    assert np.abs(big.mean(0)).max() < 0.03 and np.abs(big.std(0) - 1).max() < 0.03
+    assert np.abs(np.corrcoef(big.T) - np.eye(6)).max() < 0.03
+
+
+# -- the navigated observation -----------------------------------------------------------------
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_observation_is_the_truth_plus_the_drawn_navigation_errors(env_id):
+    env = gym.make(env_id, uncertainty="standard")
+    core = env.unwrapped
+    task = core.task
+    m = task.uncertainty
+    obs, info = env.reset(seed=4)
+    e = core.episode_errors
+    for decision in range(6):
+        truth = info["state_nd"]
+        np.testing.assert_array_equal(truth, core.state_nd)
+        np.testing.assert_array_equal(info["navigation_state_nd"], core.navigation_state_nd)
+        w = unc.radar_weight(m, task.altitude_m(truth[None]))[:, None]
+        z = unc.navigation_noise(e.noise_key, np.array([decision]))
+        dpos = w * (e.nav_position_bias_m + z[:, 0::2] * np.asarray(m.nav_position_noise_m))
+        dvel = w * (e.nav_velocity_bias_m_s + z[:, 1::2] * np.asarray(m.nav_velocity_noise_m_s))
+        if task.n_axes == 2:  # planar: no crossrange
+            dpos[:, 2] = dvel[:, 2] = 0.0
+        expect = task.offset_states(truth[None], dpos, dvel, -e.mass_error_kg)[0]
+        np.testing.assert_allclose(core.navigation_state_nd, expect, rtol=0, atol=1e-15)
+        np.testing.assert_array_equal(obs, core.observation_from_state(expect[None],
+                                                                       [core.t_s])[0])
+        # and no more: the altitude the flight computer sees is off by the up error exactly
+        alt = task.altitude_m(np.stack([truth, expect]))
+        # (to the curvature: a horizontal offset d raises the radius by d²/2r, < 0.1 m)
+        assert alt[1] - alt[0] == pytest.approx(dpos[0, 0], abs=0.1)
+        obs, _, term, trunc, info = env.step(np.zeros(env.action_space.shape))
+        if term or trunc:
+            break
+
+
+def test_entry_error_moves_the_true_start_along_the_local_axes():
+    """Planar: +1 km up and +2 km downrange, +1 m/s downrange and +5 kg at the start."""
+    env = gym.make("LunarSoftLanding-v0", uncertainty="standard")
+    core = env.unwrapped
+    y0 = core.task.scenario.state_nd(scaling=core.task.scaling)
+    env.reset(seed=0, options={"state_nd": y0, "errors": {
+        "entry_position_m": [1000.0, 2000.0, 50.0], "entry_velocity_m_s": [0.0, 1.0, 3.0],
+        "mass_error_kg": 5.0}})
+    t = core.task
+    y = core.state_nd
+    assert (y[0] - y0[0]) * t.length_ref_m == pytest.approx(1000.0, abs=1e-6)
+    assert (y[2] - y0[2]) * y0[0] * t.length_ref_m == pytest.approx(2000.0, abs=1e-6)
+    assert (y[0] * y[3] - y0[0] * y0[3]) * t.velocity_ref_m_s == pytest.approx(1.0, abs=1e-9)
+    assert (y[4] - y0[4]) * t.mass_ref_kg == pytest.approx(5.0, abs=1e-9)
+    # the flight computer believes the planned mass
+    assert core.navigation_state_nd[4] * t.mass_ref_kg == pytest.approx(y0[4] * t.mass_ref_kg,
+                                                                        abs=1e-9)
+
+
+# -- the plant against physics ---------------------------------------------------------------
+
+def _inertial_velocity(y):
+    """Planar polar state -> inertial Cartesian velocity (normalised)."""
+    r, vr, th, om = y[0], y[1], y[2], y[3]
+    # θ from Oy: position (r sin θ, r cos θ)
+    return np.array([vr * math.sin(th) + r * om * math.cos(th),
+                     vr * math.cos(th) - r * om * math.sin(th)])
+
+
+def test_weaker_engine_gives_the_rocket_equation_velocity_change():
+    """A 2 % weaker engine with the same controls: the propellant burnt is 0.98 F/c · t, and
+    the thrust's velocity change (flight minus the ballistic flight from the same start) is
+    c·ln(m0/m1), the rocket equation (the thrust turns with the local horizontal by
+    ω·t ≈ 0.5° over the burn, which changes |Δv| by ~1e-5)."""
+    burn_s = 8
+    model = UncertaintyModel(thrust_scale=0.01)
+    out = {}
+    for label, throttle in (("burn", 1.0), ("coast", -1.0)):
+        env = gym.make("LunarSoftLanding-v0", uncertainty=model, throttle_channel=True)
+        core = env.unwrapped
+        y0 = core.task.scenario.state_nd(scaling=core.task.scaling)
+        env.reset(seed=0, options={"state_nd": y0, "errors": {"thrust_scale": 0.98}})
+        for _ in range(burn_s):
+            env.step(np.array([0.0, throttle]))
+        out[label] = core.state_nd
+    t = core.task
+    veh = t.scenario.vehicle
+    c = veh.exhaust_velocity_m_s
+    m0 = y0[4] * t.mass_ref_kg
+    m1 = out["burn"][4] * t.mass_ref_kg
+    assert m0 - m1 == pytest.approx(0.98 * veh.thrust_n / c * burn_s, rel=1e-12)
+    dv = np.linalg.norm(_inertial_velocity(out["burn"]) - _inertial_velocity(out["coast"])) \
+        * t.velocity_ref_m_s
+    assert dv == pytest.approx(c * math.log(m0 / m1), rel=2e-4)
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_plant_errors_match_an_independent_integration(env_id):
+    """The env's truth under its drawn thrust, Isp and misalignment equals a DOP853
+    integration of the model with those parameters and the biased angles."""
+    env = gym.make(env_id, uncertainty="stress")
+    core = env.unwrapped
+    t = core.task
+    env.reset(seed=21)
+    e = core.episode_errors
+    y0 = core.state_nd
+    action = np.full(env.action_space.shape, 0.3)
+    controls = t.controls_from_actions(action[None].astype(np.float64))[0].copy()
+    steps = 10
+    for _ in range(steps):
+        env.step(action)
+    controls[:-1] += e.misalignment_rad[0, :len(controls) - 1]
+    params = t.params_array.copy()
+    params[0] *= e.thrust_scale[0]
+    params[1] *= e.isp_scale[0]
+    from dataclasses import replace
+    p = replace(t.params, thrust_nd=params[0], exhaust_velocity_nd=params[1])
+    ref = integrate_reference(t.model, y0, (0.0, steps * t.dt_nd), lambda _t: controls, p)
+    np.testing.assert_allclose(core.state_nd, ref.y[:, -1], rtol=1e-8, atol=1e-10)
+    # the same run with the nominal plant ends elsewhere (the errors matter)
+    nom = integrate_reference(t.model, y0, (0.0, steps * t.dt_nd),
+                              lambda _t: t.controls_from_actions(action[None].astype(float))[0],
+                              t.params)
+    assert np.abs(core.state_nd - nom.y[:, -1]).max() > 1e-6
