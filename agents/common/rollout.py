@@ -71,9 +71,11 @@ class Rollout(CaseOutcomes):
     ``records[i]`` (for the recorded cases) holds ``obs`` (T, n_obs), ``state_nd`` (T, n_state),
     ``t_s`` (T,) — the states at which an action was taken — and ``action`` (T, n_act); with
     ``record_final`` also the final state (``state_nd`` and ``t_s`` one longer).
+    ``final_state_nd`` (n, n_state): every case's true state where its episode ended.
     """
 
     records: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
+    final_state_nd: np.ndarray | None = None
 
 
 def _navigation(core, obs: np.ndarray, active: np.ndarray, privileged: bool
@@ -139,6 +141,7 @@ def fly(env_id: str, law: GuidanceLaw, n: int, *,
         miss = np.full(n, np.nan)
         fuel = np.full(n, np.nan)
         t_end = np.full(n, np.nan)
+        final = np.full(core.state_nd.shape, np.nan)
         hist = {i: {"obs": [], "state_nd": [], "t_s": [], "action": []} for i in rec}
         wall = 0.0
         n_dec = 0
@@ -174,8 +177,9 @@ def fly(env_id: str, law: GuidanceLaw, n: int, *,
                     miss[e] = vector_info(info, "miss_distance_m", n)[e]
                 fuel[e] = np.asarray(info["fuel_used_kg"], dtype=np.float64)[e]
                 t_end[e] = np.asarray(info["time_s"], dtype=np.float64)[e]
+                final[e] = core.state_nd[e]  # the final states: autoreset comes on the next step
                 if record_final:
-                    states = core.state_nd  # the final states: autoreset comes on the next step
+                    states = core.state_nd
                     for i in e:
                         if i in hist:
                             hist[i]["t_s"].append(float(info["time_s"][i]))
@@ -190,4 +194,4 @@ def fly(env_id: str, law: GuidanceLaw, n: int, *,
         venv.close()
     records = {i: {k: np.asarray(v, dtype=np.float32 if k == "obs" else np.float64)
                    for k, v in h.items()} for i, h in hist.items()}
-    return Rollout(success, speed, miss, fuel, t_end, n_dec, wall, records)
+    return Rollout(success, speed, miss, fuel, t_end, n_dec, wall, records, final)

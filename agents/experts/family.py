@@ -20,7 +20,22 @@ import numpy as np
 
 from agents.common.law import GuidanceLaw
 
-__all__ = ["EnvFamily", "PerCaseOptimum", "DatasetRecipe", "DaggerRequest"]
+__all__ = ["EnvFamily", "PerCaseOptimum", "DatasetRecipe", "DaggerRequest", "plant_scenario"]
+
+
+def plant_scenario(scenario, thrust_scale: float, isp_scale: float):
+    """``scenario`` with its engine's thrust and Isp multiplied by the given scales (a true
+    plant of the uncertainty model); the same scenario for scales of 1. The normalisation
+    (length, μ, mass units) does not depend on either, so normalised states carry over."""
+    import dataclasses
+
+    if thrust_scale == 1.0 and isp_scale == 1.0:
+        return scenario
+    v = scenario.vehicle
+    return dataclasses.replace(
+        scenario, name=f"{scenario.name}[T×{thrust_scale:.6g},Isp×{isp_scale:.6g}]",
+        vehicle=dataclasses.replace(v, thrust_n=v.thrust_n * float(thrust_scale),
+                                    isp_s=v.isp_s * float(isp_scale)))
 
 
 @dataclass
@@ -157,6 +172,21 @@ class EnvFamily(ABC):
     def per_case_optimum(self, scenario, states_nd: np.ndarray, *, progress: bool = True,
                          workers: int = 1, executor=None) -> PerCaseOptimum:
         """The certified minimum-fuel optimum from each normalised initial state (n, n_state)."""
+
+    def plant_optimum_fuel(self, scenario, states_nd: np.ndarray, thrust_scale: np.ndarray,
+                           isp_scale: np.ndarray, *, progress: bool = False) -> np.ndarray:
+        """Minimum propellant (kg) of each case (n,) from its true normalised start (n, n_state)
+        with its true engine (thrust and Isp scales (n,)): the omniscient reference of a
+        campaign. NaN where no optimum was found. This default groups the cases by plant and
+        calls :meth:`per_case_optimum`; families with a faster certified solver override it."""
+        fuel = np.full(len(states_nd), np.nan)
+        plants = np.stack([np.asarray(thrust_scale, float), np.asarray(isp_scale, float)], 1)
+        for plant in np.unique(plants, axis=0):
+            rows = np.flatnonzero(np.all(plants == plant, axis=1))
+            opt = self.per_case_optimum(plant_scenario(scenario, *plant), states_nd[rows],
+                                        progress=progress)
+            fuel[rows] = opt.fuel_kg
+        return fuel
 
     @abstractmethod
     def open_loop_law(self, optimum: PerCaseOptimum) -> GuidanceLaw:

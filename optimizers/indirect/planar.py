@@ -122,7 +122,7 @@ from .planar_system import N_STATE, hamiltonian, optimal_thrust_angle, system_fo
 
 __all__ = [
     "PontryaginGuess", "PontryaginSolution", "solve_planar_min_fuel", "nominal_guess",
-    "replay_reference",
+    "replay_reference", "release_solvers",
 ]
 
 _CHECKS = ("reference", "doubling", "grid")
@@ -366,6 +366,16 @@ class _Solver:
 
 
 _SOLVERS: dict[tuple, _Solver] = {}
+
+
+def release_solvers() -> None:
+    """Drop the process's cached shooting functions (each set of vehicle parameters holds a
+    few MB of CasADi functions): for callers that solve many different plants once each, such
+    as a campaign's omniscient optima, whose caches would otherwise grow without bound."""
+    from . import planar_system
+
+    _SOLVERS.clear()
+    planar_system._SYSTEMS.clear()
 
 
 def _solver(ocp: PlanarOCP, n_steps: int, n_jac_steps: int) -> _Solver:

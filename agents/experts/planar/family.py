@@ -8,7 +8,13 @@ import time
 import numpy as np
 
 from agents.common.law import GuidanceLaw
-from agents.experts.family import DaggerRequest, DatasetRecipe, EnvFamily, PerCaseOptimum
+from agents.experts.family import (
+    DaggerRequest,
+    DatasetRecipe,
+    EnvFamily,
+    PerCaseOptimum,
+    plant_scenario,
+)
 from agents.experts.planar.data import planar_dagger_iteration, planar_dataset_recipe
 from agents.experts.planar.expert import PlanarOpenLoopLaw, PlanarReplanningLaw, planar_state_si
 from agents.experts.planar.features import (
@@ -18,7 +24,8 @@ from agents.experts.planar.features import (
 )
 from lunar_env.envs.soft_landing import thrust_angle_from_action
 from lunar_env.scenarios import PlanarScenario
-from optimizers.indirect.batch import solve_many
+from optimizers.indirect.batch import nearest_neighbour_order, solve_many
+from optimizers.indirect.planar import release_solvers, solve_planar_min_fuel
 
 
 class PlanarFamily(EnvFamily):
@@ -44,6 +51,35 @@ class PlanarFamily(EnvFamily):
                           executor=executor)
         return PerCaseOptimum.from_solutions(list(sols), "optimizers.indirect.batch.solve_many",
                                              time.perf_counter() - t0)
+
+    def plant_optimum_fuel(self, scenario, states_nd: np.ndarray, thrust_scale: np.ndarray,
+                           isp_scale: np.ndarray, *, progress: bool = False) -> np.ndarray:
+        """Pontryagin's minimum-fuel optimum of each case with its true engine (the states' SI
+        rows come from the nominal scaling, which the plant does not change). NaN where it did
+        not converge.
+
+        Cost: the shooting functions are built per plant (~1.5 s a case, the solve itself
+        ~0.1 s, measured); they are released after each case so memory stays flat."""
+        rows = planar_state_si(scenario, states_nd)
+        fuel = np.full(len(rows), np.nan)
+        # a chain of neighbouring starts, each solve warm-started from the previous success
+        # (its costates and final time are close whatever the plant: ~0.3 s a case instead of
+        # ~1.8 s from the default collocation guess, measured)
+        it = nearest_neighbour_order(scenario, rows)
+        if progress:
+            from tqdm.auto import tqdm
+
+            it = tqdm(it, desc="omniscient optimum (Pontryagin)", unit="case")
+        guess = None
+        for k in it:
+            sc = plant_scenario(scenario, float(thrust_scale[k]), float(isp_scale[k]))
+            sol = solve_planar_min_fuel(sc, rows[k], guess=guess, check="grid")
+            if sol.success:
+                fuel[k] = sol.fuel_kg
+                guess = sol.guess
+            if sc is not scenario:
+                release_solvers()
+        return fuel
 
     def open_loop_law(self, optimum: PerCaseOptimum) -> GuidanceLaw:
         return PlanarOpenLoopLaw(optimum.solutions)
