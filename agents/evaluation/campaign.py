@@ -219,7 +219,9 @@ def wilson_interval(successes: int, n: int, z: float = 1.959963984540054
     den = 1.0 + z * z / n
     center = (p + z * z / (2 * n)) / den
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return (max(0.0, center - half), min(1.0, center + half))
+    # exact ends at 0 and n (the formula gives them only to rounding)
+    return (0.0 if successes == 0 else max(0.0, center - half),
+            1.0 if successes == n else min(1.0, center + half))
 
 
 def _pct(x: np.ndarray, q: float) -> float | None:

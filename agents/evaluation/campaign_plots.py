@@ -101,7 +101,8 @@ def plot_campaign(result, out_dir: str | Path, has_target: bool) -> list[Path]:
             from agents.evaluation.campaign import wilson_interval
 
             ci = np.array([wilson_interval(p[1], p[2]) for p in pts])
-            ax.errorbar(s, rate, yerr=[np.subtract(rate, ci[:, 0]), ci[:, 1] - rate],
+            err = np.clip([np.subtract(rate, ci[:, 0]), ci[:, 1] - rate], 0.0, None)
+            ax.errorbar(s, rate, yerr=err,
                         marker="o", capsize=3, label=name)
         ax.set_xlabel(f"error scale (× '{cfg.uncertainty.name}')")
         ax.set_ylabel("success rate")

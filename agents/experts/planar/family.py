@@ -24,8 +24,8 @@ from agents.experts.planar.features import (
 )
 from lunar_env.envs.soft_landing import thrust_angle_from_action
 from lunar_env.scenarios import PlanarScenario
-from optimizers.indirect.batch import nearest_neighbour_order, solve_many
-from optimizers.indirect.planar import release_solvers, solve_planar_min_fuel
+from optimizers.indirect.batch import solve_many
+from optimizers.indirect.planar import nominal_guess, release_solvers, solve_planar_min_fuel
 
 
 class PlanarFamily(EnvFamily):
@@ -62,21 +62,19 @@ class PlanarFamily(EnvFamily):
         ~0.1 s, measured); they are released after each case so memory stays flat."""
         rows = planar_state_si(scenario, states_nd)
         fuel = np.full(len(rows), np.nan)
-        # a chain of neighbouring starts, each solve warm-started from the previous success
-        # (its costates and final time are close whatever the plant: ~0.3 s a case instead of
-        # ~1.8 s from the default collocation guess, measured)
-        it = nearest_neighbour_order(scenario, rows)
+        # every case warm-started from the nominal optimum (not from its neighbour: a case's
+        # reference must not depend on which cases share its chunk)
+        guess = nominal_guess(scenario)
+        it = range(len(rows))
         if progress:
             from tqdm.auto import tqdm
 
             it = tqdm(it, desc="omniscient optimum (Pontryagin)", unit="case")
-        guess = None
         for k in it:
             sc = plant_scenario(scenario, float(thrust_scale[k]), float(isp_scale[k]))
             sol = solve_planar_min_fuel(sc, rows[k], guess=guess, check="grid")
             if sol.success:
                 fuel[k] = sol.fuel_kg
-                guess = sol.guess
             if sc is not scenario:
                 release_solvers()
         return fuel
