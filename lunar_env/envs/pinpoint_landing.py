@@ -446,11 +446,19 @@ _DOC = """
     the gate crossing ``touchdown_speed_m_s`` (speed at the gate) and, at the end of the episode,
     ``miss_distance_m``.
 
+    ## Plant and Navigation Errors
+
+    As ``LunarSoftLanding-v0``'s (``uncertainty="standard"``, ...; :mod:`lunar_env.uncertainty`),
+    in three axes: position and velocity errors along the local up, downrange (the orbital
+    frame's ŷ) and crossrange (ẑ) axes, and a misalignment bias on each of α and β. ``info``
+    carries ``state_nd`` and ``navigation_state_nd`` ((7,), normalised) under a model; the
+    default ``"none"`` is the env exactly as without it.
+
     ## Arguments
 
     As ``LunarSoftLanding-v0`` (``scenario`` default "peng2012", ``dt_s``, ``substeps``,
     ``time_limit_s``, ``throttle_channel``, ``success_speed_m_s``, ``max_fall_s``,
-    ``cutoff_speed_m_s``, ``render_mode``) plus ``success_miss_m`` (500.0),
+    ``cutoff_speed_m_s``, ``uncertainty``, ``render_mode``) plus ``success_miss_m`` (500.0),
     ``charge_propellant_on_failure`` (v1/v2 True, v0 False) and ``gate_range_m`` (v2 10000.0;
     None: the gate sphere everywhere).
 

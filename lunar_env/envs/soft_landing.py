@@ -327,6 +327,23 @@ _DOC = """
     ``info``: ``fuel_used_kg``, ``is_success``, ``altitude_m``, ``time_s``, and after touchdown
     ``touchdown_speed_m_s`` (absent before: infos carry no NaN).
 
+    ## Plant and Navigation Errors
+
+    ``uncertainty="standard"`` (or ``"stress"``, an :class:`~lunar_env.uncertainty.
+    UncertaintyModel`, or a dict of its fields) draws, per episode, entry errors of the start
+    (up and downrange position and velocity), a thrust scale, an Isp scale, a thrust-angle
+    misalignment and a wet-mass error, and navigation errors (a bias per episode and white
+    noise per decision, shrinking below the radar altitude): see :mod:`lunar_env.uncertainty`
+    for the model and the reasons for each value. The observation then encodes the
+    *navigated* state; integration, reward, termination, success and the usual ``info`` keys
+    use the truth, and ``info`` also carries ``state_nd`` (truth) and ``navigation_state_nd``
+    (normalised, (5,)). ``env.unwrapped.episode_errors`` holds the drawn errors, and
+    ``reset(options={"errors": {...}})`` pins some of them (e.g. ``{"thrust_scale": 0.98}``).
+    The errors of an episode reset with seed s come from a stream of their own seeded by s, so
+    case k of a campaign is the same for every law. The default ``"none"`` is this env exactly
+    as without the model (every seeded episode bit for bit,
+    ``benchmarks/record_episodes.py``).
+
     ## Arguments
 
     | Argument            | Default     | Meaning                                              |
@@ -340,6 +357,7 @@ _DOC = """
     | ``max_fall_s``      | None        | longest free fall integrated (None: time limit)      |
     | ``cutoff_speed_m_s``| 20.0        | speed minima at or below it cut the engine off       |
     | ``thrust_n``        | None        | engine level (N) in (0, T_max]; None: T_max          |
+    | ``uncertainty``     | "none"      | plant and navigation errors (see above)              |
     | ``render_mode``     | None        | "rgb_array" or "human"                               |
 
     >>> import gymnasium as gym

@@ -270,3 +270,17 @@ def test_plant_errors_match_an_independent_integration(env_id):
                               lambda _t: t.controls_from_actions(action[None].astype(float))[0],
                               t.params)
     assert np.abs(core.state_nd - nom.y[:, -1]).max() > 1e-6
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_check_env_under_the_standard_set(env_id):
+    from gymnasium.utils.env_checker import check_env
+
+    check_env(gym.make(env_id, uncertainty="standard").unwrapped, skip_render_check=True)
+    v = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point",
+                     uncertainty="stress")
+    obs, info = v.reset(seed=0)
+    assert v.observation_space.contains(obs)
+    n_state = v.unwrapped.task.model.n_state
+    assert info["navigation_state_nd"].shape == info["state_nd"].shape == (3, n_state)
+    assert not np.array_equal(info["navigation_state_nd"], info["state_nd"])
