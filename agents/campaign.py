@@ -62,10 +62,34 @@ def format_table(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def _run_env_kwargs(laws: list[str]) -> dict:
+    """The env arguments the runs among the law specs were trained with (a policy flies the
+    env it was trained on: e.g. 2.5 s decisions); ``{}`` without runs. Runs trained on
+    different arguments cannot share a campaign (ValueError: give ``--env-kwargs``)."""
+    from agents.common.law_specs import parse_law_spec
+    from agents.common.runs import read_run, run_dir_of
+
+    found: dict[str, dict] = {}
+    for text in laws:
+        spec = parse_law_spec(text)
+        if spec.argument is None or not Path(spec.argument).exists():
+            continue
+        hp = read_run(run_dir_of(spec.argument))[1]
+        found[text] = {k: v for k, v in (hp.get("env_kwargs") or {}).items()
+                       if k != "uncertainty"}
+    kinds = {json.dumps(v, sort_keys=True) for v in found.values()}
+    if len(kinds) > 1:
+        raise ValueError("the runs were trained with different env arguments ("
+                         + "; ".join(f"{k}: {v}" for k, v in found.items())
+                         + "); give --env-kwargs")
+    return next(iter(found.values())) if found else {}
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry point (``python -m agents.campaign``)."""
     from agents.common.law_specs import law_names
     from agents.evaluation.campaign import DEFAULT_SCALES, CampaignConfig, run_campaign
+    from optimizers.common.executor import ResultStore
 
     p = argparse.ArgumentParser(prog="python -m agents.campaign",
                                 description=__doc__.split("\n")[0])
@@ -78,7 +102,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="law specs NAME[:ARG][:KEY=VALUE,...]; e.g. ppo:RUN dagger:RUN "
                         "open-loop feedback")
     p.add_argument("--list-laws", action="store_true", help="print the law names and exit")
-    p.add_argument("--env-kwargs", default=None, help="JSON dict of env arguments")
+    p.add_argument("--env-kwargs", default=None,
+                   help="JSON dict of env arguments (default: those the runs among --laws were "
+                        "trained with, else none)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--chunk", type=int, default=100, help="cases per task")
     p.add_argument("--scales", type=float, nargs="*", default=list(DEFAULT_SCALES),
@@ -102,9 +128,11 @@ def main(argv: list[str] | None = None) -> int:
         unc = args.uncertainty
         if unc.lstrip().startswith("{"):
             unc = json.loads(unc)
-        env_kwargs = json.loads(args.env_kwargs) if args.env_kwargs else {}
-        if not isinstance(env_kwargs, dict):
+        env_kwargs = json.loads(args.env_kwargs) if args.env_kwargs else None
+        if env_kwargs is not None and not isinstance(env_kwargs, dict):
             raise ValueError(f"--env-kwargs {args.env_kwargs!r} is not a JSON dict")
+        if env_kwargs is None:
+            env_kwargs = _run_env_kwargs(args.laws)
         import gymnasium as gym
 
         import lunar_env  # noqa: F401
@@ -117,10 +145,12 @@ def main(argv: list[str] | None = None) -> int:
                                 chunk=args.chunk, scales=tuple(args.scales),
                                 curve_cases=args.curve_cases)
         gym.make(args.env, **env_kwargs, uncertainty=config.uncertainty).close()
+        out = Path(args.out or f"results/campaign/{args.env}-{config.uncertainty.name}-"
+                               f"{args.cases}-{args.seed}")
+        # a directory of another campaign is refused here, before any work
+        ResultStore(out / "store", identity=config.identity(), fmt="json")
     except (ValueError, TypeError, json.JSONDecodeError) as exc:
         p.error(str(exc))
-    out = Path(args.out or f"results/campaign/{args.env}-{config.uncertainty.name}-"
-                           f"{args.cases}-{args.seed}")
     print(f"campaign -> {out}", flush=True)
     result = run_campaign(config, out, workers=args.workers, address=args.address,
                           plots=not args.no_plots, json_file=args.json)
