@@ -58,12 +58,15 @@ class PlanarFamily(EnvFamily):
         rows come from the nominal scaling, which the plant does not change). NaN where it did
         not converge.
 
-        Cost: the shooting functions are built per plant (~1.5 s a case, the solve itself
-        ~0.1 s, measured); they are released after each case so memory stays flat."""
+        A thrust error is solved exactly as a mass change: with thrust k_T·F the equations of
+        motion in m are those with thrust F in m / k_T (acceleration F k_T / m, mass flow
+        k_T F / c), so the case is solved with the nominal thrust from m0 / k_T and its fuel
+        multiplied by k_T. Only an Isp error needs its own shooting functions (built per Isp,
+        ~1.5 s, the solve itself ~0.1 s, measured; released after each case so memory stays
+        flat). Every case is warm-started from the nominal optimum, never from a neighbour, so
+        its reference does not depend on which cases share its chunk."""
         rows = planar_state_si(scenario, states_nd)
         fuel = np.full(len(rows), np.nan)
-        # every case warm-started from the nominal optimum (not from its neighbour: a case's
-        # reference must not depend on which cases share its chunk)
         guess = nominal_guess(scenario)
         it = range(len(rows))
         if progress:
@@ -71,10 +74,13 @@ class PlanarFamily(EnvFamily):
 
             it = tqdm(it, desc="omniscient optimum (Pontryagin)", unit="case")
         for k in it:
-            sc = plant_scenario(scenario, float(thrust_scale[k]), float(isp_scale[k]))
-            sol = solve_planar_min_fuel(sc, rows[k], guess=guess, check="grid")
+            kt = float(thrust_scale[k])
+            sc = plant_scenario(scenario, 1.0, float(isp_scale[k]))
+            row = rows[k].copy()
+            row[4] /= kt
+            sol = solve_planar_min_fuel(sc, row, guess=guess, check="grid")
             if sol.success:
-                fuel[k] = sol.fuel_kg
+                fuel[k] = kt * sol.fuel_kg
             if sc is not scenario:
                 release_solvers()
         return fuel
