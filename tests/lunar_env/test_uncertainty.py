@@ -25,7 +25,7 @@ IDS = ("LunarSoftLanding-v0", "LunarPinpointLanding-v2")
     ({"mass_kg": float("inf")}, "mass_kg"),
     ({"entry_position_m": (1.0, -2.0, 3.0)}, "entry_position_m[1]"),
     ({"nav_velocity_noise_m_s": (1.0, 2.0)}, "nav_velocity_noise_m_s"),
-    ({"near_ground_fraction": 1.5}, "near_ground_fraction"),
+    ({"near_ground_velocity_fraction": 1.5}, "near_ground_velocity_fraction"),
     ({"radar_altitude_m": 0.0}, "radar_altitude_m"),
     ({"thrust_scale": 0.3}, "thrust_scale"),
     ({"misalignment_rad": "0.1"}, "misalignment_rad"),
@@ -167,10 +167,12 @@ def test_observation_is_the_truth_plus_the_drawn_navigation_errors(env_id):
         truth = info["state_nd"]
         np.testing.assert_array_equal(truth, core.state_nd)
         np.testing.assert_array_equal(info["navigation_state_nd"], core.navigation_state_nd)
-        w = unc.radar_weight(m, task.altitude_m(truth[None]))[:, None]
+        wp, wv = unc.radar_weight(m, task.altitude_m(truth[None]))
         z = unc.navigation_noise(e.noise_key, np.array([decision]))
-        dpos = w * (e.nav_position_bias_m + z[:, 0::2] * np.asarray(m.nav_position_noise_m))
-        dvel = w * (e.nav_velocity_bias_m_s + z[:, 1::2] * np.asarray(m.nav_velocity_noise_m_s))
+        dpos = wp[:, None] * (e.nav_position_bias_m
+                              + z[:, 0::2] * np.asarray(m.nav_position_noise_m))
+        dvel = wv[:, None] * (e.nav_velocity_bias_m_s
+                              + z[:, 1::2] * np.asarray(m.nav_velocity_noise_m_s))
         if task.n_axes == 2:  # planar: no crossrange
             dpos[:, 2] = dvel[:, 2] = 0.0
         expect = task.offset_states(truth[None], dpos, dvel, -e.mass_error_kg)[0]
