@@ -39,10 +39,12 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from agents.hyperparams import ALGOS, PROFILE_SEPARATOR, default_hyperparams_path, load_hyperparams
 
-__all__ = ["lunar_vec_env", "zoo_entry", "zoo_hyperparams", "render_zoo_yaml", "zoo_path",
+__all__ = ["lunar_vec_env", "TrainingOnly", "zoo_entry", "zoo_hyperparams", "render_zoo_yaml",
+           "zoo_path",
            "ZOO_PROFILES", "LEFT_OUT_KEYS", "main"]
 
 #: profiles for which a Zoo file is generated (None: the base entries)
@@ -91,7 +93,8 @@ def lunar_vec_env(venv, *, native: bool = True, obs_features: list[str] | None =
     The Zoo applies the same wrapper to its evaluation env (and ``rl_zoo3.enjoy`` to its test
     env), which it builds without a monitor file: those get the features only (curriculum
     starts and shaping are training devices; evaluation measures the env's own episodes and
-    rewards). ``total_timesteps`` (the curriculum's annealing length) is the entry's
+    rewards; :class:`TrainingOnly` stands in for each, keeping the chain's depth).
+    ``total_timesteps`` (the curriculum's annealing length) is the entry's
     ``n_timesteps``: a Zoo ``-n`` override does not change it.
 
     Parameters
@@ -132,17 +135,50 @@ def lunar_vec_env(venv, *, native: bool = True, obs_features: list[str] | None =
     monitor = _monitor_file(venv)
     n_envs = venv.num_envs
     venv.close()
-    training = monitor is not None
+    if monitor is None:
+        return _evaluation_env(spec.id, n_envs, seed, env_kwargs, obs_features,
+                               n_inactive=int(bool(curriculum)) + int(bool(reward_shaping)))
     out = make_training_env(
         spec.id, n_envs, seed, env_kwargs=env_kwargs,
-        curriculum=dict(curriculum) if (curriculum and training) else None,
+        curriculum=dict(curriculum) if curriculum else None,
         total_timesteps=int(total_timesteps), progress=False,
         obs_features=list(obs_features) if obs_features else None,
-        reward_shaping=dict(reward_shaping) if (reward_shaping and training) else None,
+        reward_shaping=dict(reward_shaping) if reward_shaping else None,
         gamma=float(gamma))
-    if training and isinstance(out, VecMonitor):
+    if isinstance(out, VecMonitor):
         out = VecMonitor(out.venv, filename=str(Path(monitor).parent / "native"))
     return out
+
+
+class TrainingOnly(VecEnvWrapper):
+    """Stands in an evaluation env for a training-only wrapper (curriculum, reward shaping):
+    passes everything through, so that the evaluation env's wrapper chain has the training
+    env's depth (SB3's ``sync_envs_normalization`` walks both chains side by side)."""
+
+    def reset(self):
+        """The wrapped env's reset."""
+        return self.venv.reset()
+
+    def step_wait(self):
+        """The wrapped env's step."""
+        return self.venv.step_wait()
+
+
+def _evaluation_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: dict[str, Any],
+                    obs_features: list[str] | None, n_inactive: int):
+    """The native env with the observation features and without the training devices."""
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from agents.common.vec_env import make_sb3_vec_env
+
+    venv = make_sb3_vec_env(env_id, n_envs, seed=seed, **env_kwargs)
+    for _ in range(n_inactive):
+        venv = TrainingOnly(venv)
+    if obs_features:
+        from agents.common.features import ObsFeatureWrapper
+
+        venv = ObsFeatureWrapper(venv, list(obs_features))
+    return VecMonitor(venv)
 
 
 # ----------------------------------------------------------------------------- the generator
