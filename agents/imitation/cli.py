@@ -31,7 +31,9 @@ def build_parser() -> argparse.ArgumentParser:
     for mode in ("bc", "dagger"):
         s = sub.add_parser(mode, help=f"train by {mode.upper()}")
         s.add_argument("--env", default=DEFAULT_ENV_ID)
-        s.add_argument("--dataset", default=None, help="dataset .npz (python -m agents.dataset)")
+        s.add_argument("--dataset", default=None,
+                       help="dataset .npz (python -m agents.dataset), or minari:<dataset id> "
+                            "for a Minari dataset of the env")
         s.add_argument("--hyperparams-file", default=str(_HP_FILE))
         s.add_argument("--config", default="default", help="profile: default or e.g. quick")
         s.add_argument("--quick", action="store_true", help="same as --config quick")
