@@ -4,7 +4,7 @@
 
     python -m agents.dataset --n 1000                                   # soft landing
     python -m agents.dataset --env LunarPinpointLanding-v2 --n 200      # pinpoint, noisy expert
-    python -m agents.dataset --n 1000 --minari optimal-v0    # + lunar/LunarSoftLanding-v0/optimal-v0
+    python -m agents.dataset --n 1000 --minari optimal-v0   # + lunar/<env>/optimal-v0
 
 The datasets themselves are built by :func:`agents.imitation.dataset.generate` and read by
 :func:`agents.imitation.data.load_dataset`; ``--minari NAME`` also writes the certified flights
