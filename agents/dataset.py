@@ -19,6 +19,7 @@ import os
 
 from agents.experts.pinpoint.data import PINPOINT_ACTION_NOISE, PINPOINT_TOLERANCES
 from agents.imitation.dataset import DEFAULT_ENV_ID, DEFAULT_OUT, generate
+from optimizers.common.cli import check_env, user_input_errors
 
 __all__ = ["main"]
 
@@ -69,6 +70,14 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--env-kwargs {item!r}: expected KEY=VALUE")
         k, v = item.split("=", 1)
         env_kwargs[k] = yaml.safe_load(v)
+    for flag, value, low in (("--n", args.n, 1), ("--workers", args.workers, 1),
+                             ("--shard-size", args.shard_size, 1), ("--n-steps", args.n_steps, 2)):
+        if value < low:
+            p.error(f"{flag} {value}: must be >= {low}")
+    if args.noise is not None and not (args.noise >= 0.0 and args.noise < float("inf")):
+        p.error(f"--noise {args.noise}: must be finite and >= 0")
+    with user_input_errors(p):
+        check_env(args.env, env_kwargs)
     if args.out is None:
         args.out = f"data/imitation/{args.env}_n{args.n}_seed{args.seed}.npz"
     minari_id = None
@@ -79,6 +88,13 @@ def main(argv: list[str] | None = None) -> int:
             minari_id = minari_dataset_id(args.env, args.minari)
         except ValueError as exc:
             p.error(f"--minari: {exc}")
+        try:
+            import minari
+        except ImportError:
+            p.error("--minari needs the 'minari' extra: pip install -e '.[minari]'")
+        if minari_id in minari.list_local_datasets() and not args.minari_overwrite:
+            p.error(f"--minari {args.minari}: the Minari dataset {minari_id!r} exists locally; "
+                    "add --minari-overwrite or choose another name/version")
     from optimizers.common.executor import RAY_ADDRESS_ENV, get_executor
 
     executor = (get_executor(args.address, args.workers)

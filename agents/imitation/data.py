@@ -111,6 +111,9 @@ def load_dataset(path: str | Path) -> ImitationDataset:
         from agents.imitation.minari_data import load_minari
 
         return load_minari(str(path))
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"dataset file {path} does not exist; make one with python -m "
+                                "agents.dataset (or give minari:<dataset id>)")
     try:
         z = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
