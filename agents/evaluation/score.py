@@ -7,7 +7,8 @@ and the return ``R_opt,i`` of the replay of the case's minimum-fuel optimum::
 
     score_i = 100 · (R_i − R_rand,i) / (R_opt,i − R_rand,i)
 
-0 is the random policy, 100 the per-case optimum. D4RL normalises with one expert return per
+0 is the random policy (:class:`agents.common.random_law.RandomLaw`), 100 the per-case
+optimum. D4RL normalises with one expert return per
 env (a trained policy's); here the expert is each case's certified optimum, so the reference is
 exact and differs per case. The reported score is the mean of ``score_i`` over the cases where
 both references are finite and the optimum's return exceeds the random one. It does not replace
@@ -21,16 +22,12 @@ Score(per_case=array([ 50., 100.]), mean=75.0, n_cases=2)
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 
-from agents.common.law import FlightComputer, GuidanceLaw, Navigation
+from agents.common.random_law import RANDOM_SEED, RandomLaw
 
 __all__ = ["RandomLaw", "Score", "normalised_score", "RANDOM_SEED"]
-
-#: seed of the random reference's action draws (the cases themselves are the evaluation's)
-RANDOM_SEED = 12345
 
 
 @dataclass
@@ -76,32 +73,3 @@ def normalised_score(returns, random_returns, optimum_returns) -> Score:
     n = int(ok.sum())
     return Score(per_case=per_case, mean=float(np.mean(per_case[ok])) if n else float("nan"),
                  n_cases=n)
-
-
-class RandomLaw(GuidanceLaw):
-    """Uniform-random actions in the env's action space: the score's 0 reference.
-
-    Case ``i`` draws from its own generator seeded ``(seed, case_id)``, so a case's actions do
-    not depend on the batch it flies in.
-    """
-
-    name = "random"
-    privileged: ClassVar[bool] = False
-
-    def __init__(self, seed: int = RANDOM_SEED) -> None:
-        self.seed = int(seed)
-        self._rngs: list[np.random.Generator] = []
-
-    def reset(self, computer: FlightComputer, case_ids: np.ndarray) -> None:
-        """Bind the action bounds and seed one generator per case."""
-        self._low = np.asarray(computer.action_space.low, dtype=np.float64)
-        self._high = np.asarray(computer.action_space.high, dtype=np.float64)
-        self._rngs = [np.random.default_rng([self.seed, int(c)]) for c in case_ids]
-
-    def act(self, nav: Navigation) -> np.ndarray:
-        """One uniform draw per lander within the action bounds."""
-        if len(self._rngs) != nav.n:
-            raise ValueError(f"RandomLaw was reset for {len(self._rngs)} cases, asked for "
-                             f"{nav.n}")
-        u = np.stack([g.uniform(self._low, self._high) for g in self._rngs])
-        return u.astype(np.float32)

@@ -30,7 +30,7 @@ cannot be re-flown and it is refused; mid-flight restarts (``parent_index >= 0``
 from the env's reset distribution and are left out.
 
 Reference scores (Minari's ``get_normalized_score``): ``ref_min_score`` is the mean return of
-:class:`agents.evaluation.score.RandomLaw` flown from the same starts, ``ref_max_score`` the
+:class:`agents.common.random_law.RandomLaw` flown from the same starts, ``ref_max_score`` the
 mean return of the optimal episodes themselves. Minari accepts ``expert_policy`` only
 instead of ``ref_max_score`` (to estimate it by rolling the policy out) and does not store it;
 the exact value is given instead.
@@ -203,8 +203,8 @@ def write_minari(ds: ImitationDataset, dataset_id: str, *, source: str | None = 
     import gymnasium as gym
 
     import lunar_env  # noqa: F401  (registers the ids)
+    from agents.common.random_law import RandomLaw
     from agents.common.rollout import fly
-    from agents.evaluation.score import RandomLaw
 
     env_id = ds.meta["env_id"]
     env_kwargs = dict(ds.meta.get("env_kwargs") or {})
