@@ -23,6 +23,7 @@ from agents.evaluation.compare import (
     compare,
 )
 from agents.evaluation.report import publish_report
+from optimizers.common.cli import check_env, user_input_errors
 
 __all__ = ["main"]
 
@@ -65,25 +66,33 @@ def main(argv: list[str] | None = None) -> int:
     env_id = args.env
     env_kwargs = None
     laws: list[GuidanceLaw] = []
+    if args.n_states < 1:
+        p.error(f"--n-states {args.n_states}: must be >= 1")
     for m in args.model:
-        run_dir = run_dir_of(m)
-        ra, hp = read_run(run_dir)
+        with user_input_errors(p, prefix=f"--model {m}"):
+            run_dir = run_dir_of(m)
+            ra, hp = read_run(run_dir)
+            laws.append(SB3Law.from_path(m))
         if ra:
             if env_id is None:
                 env_id = ra["env"]
             if env_kwargs is None:
                 env_kwargs = hp.get("env_kwargs")
-        laws.append(SB3Law.from_path(m))
         if len(args.model) > 1:
             laws[-1].name = f"{laws[-1].name} ({run_dir.name})"
     env_id = env_id or DEFAULT_ENV_ID
     if args.env_kwargs:
         import json as _json
 
-        extra = _json.loads(args.env_kwargs)
+        try:
+            extra = _json.loads(args.env_kwargs)
+        except ValueError as exc:
+            p.error(f"--env-kwargs {args.env_kwargs!r} is not JSON ({exc})")
         if not isinstance(extra, dict):
             p.error(f"--env-kwargs {args.env_kwargs!r} must be a JSON object")
         env_kwargs = {**(env_kwargs or {}), **extra}
+    with user_input_errors(p):
+        check_env(env_id, env_kwargs)
     import os
 
     from optimizers.common.executor import RAY_ADDRESS_ENV, get_executor

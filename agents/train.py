@@ -69,9 +69,11 @@ from agents.hyperparams import (
     default_hyperparams_path,
     load_hyperparams,
     parse_override,
+    resolve_algo_kwargs,
 )
 from agents.rl.race import race_pending, race_trained_to_end, seed_race
 from agents.rl.training import DEFAULT_ENV_ID, make_training_env, train
+from optimizers.common.cli import check_env, user_input_errors
 
 __all__ = ["main", "build_parser", "train", "make_training_env", "load_trained", "next_run_dir",
            "DEFAULT_ENV_ID"]
@@ -159,6 +161,7 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
     """Merge YAML, profile and CLI overrides; return (hyperparameters, run arguments)."""
     profile = "quick" if args.quick else args.config
     hp_file = args.hyperparams_file or str(default_hyperparams_path(args.algo))
+    check_env(args.env)
     hp = load_hyperparams(hp_file, args.env, profile)
     overrides = dict(parse_override(t) for t in args.hyperparams)
     if args.n_timesteps is not None:
@@ -182,6 +185,15 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
     hp["n_envs"] = int(hp["n_envs"])
     if hp["n_timesteps"] < 1:
         raise ValueError(f"n_timesteps={hp['n_timesteps']} must be >= 1")
+    if hp["n_envs"] < 1:
+        raise ValueError(f"n_envs={hp['n_envs']} must be >= 1")
+    # the algorithm's arguments (names resolved, removed keys refused) before any run directory
+    resolve_algo_kwargs(hp, args.algo, n_actions=1)
+    check_env(args.env, hp.get("env_kwargs"))
+    if hp.get("obs_features"):
+        from agents.common.features import validate_features
+
+        validate_features(hp["obs_features"])
     run = dict(vars(args))
     run["config"] = profile
     if run["eval_states"] is None:
@@ -232,7 +244,8 @@ def main(argv: list[str] | None = None) -> int:
     elif args.optimize:
         from agents.rl.search import optimize
 
-        hp, run = _resolve_args(args)
+        with user_input_errors(parser):
+            hp, run = _resolve_args(args)
         try:
             optimize(hp, run, n_trials=args.n_trials, sampler=args.sampler, pruner=args.pruner,
                      n_startup_trials=args.n_startup_trials, n_evaluations=args.n_evaluations,
@@ -245,7 +258,8 @@ def main(argv: list[str] | None = None) -> int:
             return 130
         return 0
     else:
-        hp, run = _resolve_args(args)
+        with user_input_errors(parser):
+            hp, run = _resolve_args(args)
         if args.run_dir:
             try:  # claimed atomically: two processes never share an explicit --run-dir
                 run_dir = claim_run_dir(args.run_dir)

@@ -4,7 +4,8 @@
 vectorization_mode="vector_entry_point")``) with a guidance law (:mod:`agents.common.law`)
 until every case has ended once, and returns the per-case outcome (:class:`Rollout`) read from the
 env's ``info``
-(success, touchdown speed, miss distance, fuel, time), with per-case histories of the recorded
+(success, touchdown speed, miss distance, fuel, time) and each case's episode return, with
+per-case histories of the recorded
 cases. Case ``i`` is sub-env ``i``: reset with ``seed + i`` (Gymnasium's vector convention), or
 pinned by ``reset_options`` (e.g. ``{"state_si": rows}``).
 """
@@ -48,7 +49,8 @@ def vector_info(info: dict, key: str, n: int) -> np.ndarray:
 class CaseOutcomes:
     """What the env's ``info`` says of each case at its end (arrays of length n_cases), and
     what the law's decisions cost: ``n_decisions`` of landers still flying and the law's
-    ``policy_wall_s`` (s) over them."""
+    ``policy_wall_s`` (s) over them. ``episode_return`` is each case's sum of the env's rewards
+    (unshaped, undiscounted) over its one episode."""
 
     is_success: np.ndarray
     touchdown_speed_m_s: np.ndarray
@@ -57,6 +59,7 @@ class CaseOutcomes:
     episode_time_s: np.ndarray
     n_decisions: int
     policy_wall_s: float
+    episode_return: np.ndarray
 
     @property
     def us_per_decision(self) -> float:
@@ -142,6 +145,7 @@ def fly(env_id: str, law: GuidanceLaw, n: int, *,
         fuel = np.full(n, np.nan)
         t_end = np.full(n, np.nan)
         final = np.full(core.state_nd.shape, np.nan)
+        ret = np.zeros(n)
         hist = {i: {"obs": [], "state_nd": [], "t_s": [], "action": []} for i in rec}
         wall = 0.0
         n_dec = 0
@@ -167,7 +171,8 @@ def fly(env_id: str, law: GuidanceLaw, n: int, *,
             for i in rec:
                 if active[i]:
                     hist[i]["action"].append(np.array(action[i], copy=True))
-            obs, _, term, trunc, info = venv.step(action)
+            obs, reward, term, trunc, info = venv.step(action)
+            ret += np.where(active, np.asarray(reward, dtype=np.float64), 0.0)
             ended = (np.asarray(term) | np.asarray(trunc)) & active
             if ended.any():
                 e = np.flatnonzero(ended)
@@ -194,4 +199,4 @@ def fly(env_id: str, law: GuidanceLaw, n: int, *,
         venv.close()
     records = {i: {k: np.asarray(v, dtype=np.float32 if k == "obs" else np.float64)
                    for k, v in h.items()} for i, h in hist.items()}
-    return Rollout(success, speed, miss, fuel, t_end, n_dec, wall, records, final)
+    return Rollout(success, speed, miss, fuel, t_end, n_dec, wall, ret, records, final)

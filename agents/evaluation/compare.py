@@ -31,6 +31,12 @@ Metrics (one row per policy)
 - ``fuel_kg`` mean over all cases; ``fuel_gap_pct``: mean over *successful* cases of
   100·(fuel − optimal fuel)/optimal fuel (decision: a crash can use less fuel than the optimum,
   so averaging over failures would reward them; the all-case gap is in the JSON too);
+- ``score``: the env's benchmark score (:mod:`agents.evaluation.score`), the mean over cases
+  of 100·(return − random)/(optimum − random), where "random" is the return of a
+  uniform-random action law flown on the same cases (the ``random`` row) and "optimum" that of
+  the replay of the case's optimum (the open-loop row; flown for the reference even with
+  ``open_loop=False``); 0 is random, 100 the per-case optimum; ``return_mean`` is the mean
+  episode return (the env's rewards, unshaped);
 - ``us_per_decision``: wall time of the policy's action computation divided by the number of
   decisions of landers still flying (batched policies amortise one forward pass over the
   batch; the expert's time is one re-plan per decision).
@@ -53,6 +59,7 @@ from agents.common.rollout import fly, make_vec
 from agents.common.sb3_law import SB3Law
 from agents.evaluation.report import markdown_table, write_report
 from agents.evaluation.result import PolicyResult
+from agents.evaluation.score import RandomLaw, normalised_score
 
 __all__ = ["PolicyResult", "initial_states", "rollout", "compare", "evaluate_run",
            "DEFAULT_ENV_ID", "DEFAULT_N_STATES", "DEFAULT_SEED"]
@@ -111,7 +118,8 @@ def rollout(env_id: str, law: GuidanceLaw, n: int, seed: int,
 
 
 def _summary(res: PolicyResult, opt_fuel: np.ndarray | None,
-             opt_tf: np.ndarray | None = None) -> dict[str, Any]:
+             opt_tf: np.ndarray | None = None, random_return: np.ndarray | None = None,
+             optimum_return: np.ndarray | None = None) -> dict[str, Any]:
     td = np.isfinite(res.touchdown_speed_m_s)
     row: dict[str, Any] = {
         "policy": res.name,
@@ -153,6 +161,14 @@ def _summary(res: PolicyResult, opt_fuel: np.ndarray | None,
                 100.0 * (res.episode_time_s[okt] - tf[okt]) / tf[okt]))
     row["fuel_gap_pct_all_cases"] = gap_all
     row["n_cases_in_gap"] = n_gap
+    row["return_mean"] = float(np.mean(res.episode_return))
+    row["score"] = float("nan")
+    row["n_cases_in_score"] = 0
+    if random_return is not None and optimum_return is not None:
+        sc = normalised_score(res.episode_return, random_return[res.case_ids],
+                              optimum_return[res.case_ids])
+        row["score"] = sc.mean
+        row["n_cases_in_score"] = sc.n_cases
     return row
 
 
@@ -187,17 +203,32 @@ def compare(env_id: str, laws: list[GuidanceLaw], n_states: int = DEFAULT_N_STAT
     optimum = family.per_case_optimum(scenario, states, progress=progress,
                                       workers=optimum_workers, executor=optimum_executor)
     flights = [(law, n_states) for law in laws]
-    flights += family.baseline_laws(scenario, optimum, n_states, open_loop=open_loop,
-                                    n_expert_cases=n_expert_states)
+    baselines = family.baseline_laws(scenario, optimum, n_states, open_loop=open_loop,
+                                     n_expert_cases=n_expert_states)
+    flights += baselines
+    random_law = RandomLaw()
+    flights.append((random_law, n_states))
     runs: list[PolicyResult] = []
     for law, n in flights:
         if progress:
             print(f"Evaluating {law_label(law)} on {n} cases...", flush=True)
-        runs.append(rollout(env_id, law, n, seed, env_kwargs, trace_cases=trace_cases))
-    rows = [_summary(r, optimum.fuel_kg, optimum.tf_s) for r in runs]
+        runs.append(rollout(env_id, law, n, seed, env_kwargs,
+                            trace_cases=0 if law is random_law else trace_cases))
+    # the score's references: the random law's and the optimum replay's returns on every case
+    random_return = runs[-1].episode_return
+    if open_loop:
+        optimum_return = runs[len(laws)].episode_return
+    else:
+        optimum_return = rollout(env_id, family.open_loop_law(optimum), n_states, seed,
+                                 env_kwargs, trace_cases=0).episode_return
+    optimum_return = np.where(np.isfinite(optimum.fuel_kg), optimum_return, np.nan)
+    rows = [_summary(r, optimum.fuel_kg, optimum.tf_s, random_return, optimum_return)
+            for r in runs]
     return {"env_id": env_id, "seed": seed, "n_states": n_states,
             "env_kwargs": dict(env_kwargs or {}), "rows": rows, "optimum": optimum.info,
             "results": runs, "optimal_solutions": optimum.solutions,
+            "score_references": {"random_return": random_return,
+                                 "optimum_return": optimum_return},
             "initial_states_nd": states, "scenario": scenario, "family": family.name}
 
 

@@ -25,7 +25,8 @@ def markdown_table(report: dict[str, Any]) -> str:
     head = ["policy", "cases", "success %", "touchdown speed mean / p95 (m/s)"]
     if has_miss:
         head.append("miss mean (m)")
-    head += ["fuel mean (kg)", "gap to optimum (%)", "final-time gap (%)", "µs / decision"]
+    head += ["fuel mean (kg)", "gap to optimum (%)", "final-time gap (%)", "score",
+             "µs / decision"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in report["rows"]:
         cells = [r["policy"], str(r["n_cases"]), _fmt(100 * r["success_rate"], ".1f"),
@@ -35,6 +36,7 @@ def markdown_table(report: dict[str, Any]) -> str:
             cells.append(_fmt(r["miss_distance_mean_m"], ".0f"))
         cells += [_fmt(r["fuel_mean_kg"], ".2f"), _fmt(r.get("fuel_gap_pct"), "+.2f"),
                   _fmt(r.get("final_time_gap_pct", float("nan")), "+.2f"),
+                  _fmt(r.get("score", float("nan")), ".1f"),
                   _fmt(r["us_per_decision"], ".1f")]
         lines.append("| " + " | ".join(cells) + " |")
     opt = report.get("optimum", {})
@@ -43,7 +45,9 @@ def markdown_table(report: dict[str, Any]) -> str:
         lines.append(f"Per-case optimum ({opt['solver']}): {opt['converged']}/"
                      f"{report['n_states']} converged, mean {opt['fuel_mean_kg']:.2f} kg, "
                      f"{opt['wall_s']:.1f} s. Gap: mean over successful cases of "
-                     "100·(fuel − optimum)/optimum.")
+                     "100·(fuel − optimum)/optimum. Score: mean over cases of "
+                     "100·(return − random)/(optimum − random), 0 = uniform-random actions, "
+                     "100 = the per-case optimum's replay.")
     return "\n".join(lines)
 
 
@@ -54,7 +58,9 @@ def _json_report(report: dict[str, Any]) -> dict[str, Any]:
                  "touchdown_speed_m_s": [None if not math.isfinite(v) else v
                                          for v in r.touchdown_speed_m_s.tolist()],
                  "fuel_used_kg": [None if not math.isfinite(v) else v
-                                  for v in r.fuel_used_kg.tolist()]}
+                                  for v in r.fuel_used_kg.tolist()],
+                 "episode_return": [None if not math.isfinite(v) else v
+                                    for v in r.episode_return.tolist()]}
         for r in report["results"]}
     sols = report.get("optimal_solutions")
     if sols is not None:

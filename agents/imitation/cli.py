@@ -16,6 +16,7 @@ import yaml
 from agents.common.runs import write_text_atomic
 from agents.imitation.bc import _new_run_dir, train_bc
 from agents.imitation.dagger import train_dagger
+from optimizers.common.cli import check_env, user_input_errors
 
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
 _HP_FILE = Path(__file__).parents[1] / "hyperparams" / "imitation.yml"
@@ -31,7 +32,9 @@ def build_parser() -> argparse.ArgumentParser:
     for mode in ("bc", "dagger"):
         s = sub.add_parser(mode, help=f"train by {mode.upper()}")
         s.add_argument("--env", default=DEFAULT_ENV_ID)
-        s.add_argument("--dataset", default=None, help="dataset .npz (python -m agents.dataset)")
+        s.add_argument("--dataset", default=None,
+                       help="dataset .npz (python -m agents.dataset), or minari:<dataset id> "
+                            "for a Minari dataset of the env")
         s.add_argument("--hyperparams-file", default=str(_HP_FILE))
         s.add_argument("--config", default="default", help="profile: default or e.g. quick")
         s.add_argument("--quick", action="store_true", help="same as --config quick")
@@ -98,7 +101,7 @@ def _run_env_kwargs(path: str | Path, env_id: str) -> dict[str, Any]:
     return {k: v for k, v in kw.items() if not (k in defaults and defaults[k] == v)}
 
 
-def _evaluate_cli(args) -> int:
+def _evaluate_cli(args, parser: argparse.ArgumentParser) -> int:
     """Compare named policies with :func:`agents.evaluation.compare.compare`.
 
     Policies trained with different env settings (e.g. PPO's 5 s decisions, imitation's 1 s)
@@ -112,13 +115,17 @@ def _evaluate_cli(args) -> int:
     from agents.evaluation.report import publish_report
 
     groups: dict[str, tuple[dict[str, Any], list]] = {}
+    with user_input_errors(parser):
+        check_env(args.env)
     for item in args.model:
         if "=" not in item:
-            raise SystemExit(f"--model {item!r}: expected NAME=PATH")
+            parser.error(f"--model {item!r}: expected NAME=PATH")
         name, path = item.split("=", 1)
-        kw = _run_env_kwargs(path, args.env)
+        with user_input_errors(parser, prefix=f"--model {item}"):
+            kw = _run_env_kwargs(path, args.env)
+            law = SB3Law.from_path(path, name=name)
         key = json.dumps(kw, sort_keys=True)
-        groups.setdefault(key, (kw, []))[1].append(SB3Law.from_path(path, name=name))
+        groups.setdefault(key, (kw, []))[1].append(law)
     if not groups:
         groups["{}"] = ({}, [])
     reports = []
@@ -147,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.mode == "evaluate":
-        return _evaluate_cli(args)
+        return _evaluate_cli(args, parser)
     th.set_num_threads(max(int(args.torch_threads), 1))
     argv_list = list(sys.argv[1:] if argv is None else argv)
     if args.resume:
@@ -167,7 +174,15 @@ def main(argv: list[str] | None = None) -> int:
     else:
         if args.dataset is None:
             parser.error("--dataset is required (make one with python -m agents.dataset)")
-        hp, run = _resolve(args)
+        from agents.imitation.data import load_dataset
+
+        with user_input_errors(parser):
+            check_env(args.env)
+            hp, run = _resolve(args)
+            dataset = load_dataset(args.dataset)
+            if dataset.meta["env_id"] != args.env:
+                raise ValueError(f"--dataset {args.dataset} is for {dataset.meta['env_id']!r}, "
+                                 f"not --env {args.env!r}")
         from agents.common.runs import claim_run_dir
 
         try:  # both created atomically: concurrent runs never share a directory
@@ -176,9 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         except FileExistsError as exc:
             parser.error(str(exc))
         run["run_dir"] = str(run_dir)
-        from agents.imitation.data import load_dataset
-
-        hp["env_kwargs"] = load_dataset(args.dataset).meta.get("env_kwargs") or {}
+        hp["env_kwargs"] = dataset.meta.get("env_kwargs") or {}
         write_text_atomic(run_dir / "config.yml", yaml.safe_dump(hp, sort_keys=True))
         write_text_atomic(run_dir / "args.yml", yaml.safe_dump(run, sort_keys=True))
         write_text_atomic(run_dir / "command.txt",

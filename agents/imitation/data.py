@@ -98,7 +98,8 @@ def save_dataset(path: str | Path, meta: dict[str, Any], arrays: dict[str, np.nd
 
 
 def load_dataset(path: str | Path) -> ImitationDataset:
-    """Read a dataset written by :func:`generate` / :func:`save_dataset`.
+    """Read a dataset written by :func:`generate` / :func:`save_dataset`, or a Minari dataset
+    given as ``minari:<dataset id>`` (:func:`agents.imitation.minari_data.load_minari`).
 
     Raises
     ------
@@ -106,6 +107,13 @@ def load_dataset(path: str | Path) -> ImitationDataset:
         The file has no ``meta``, a different ``format_version`` than :data:`FORMAT_VERSION`,
         or lacks a required array.
     """
+    if str(path).startswith("minari:"):
+        from agents.imitation.minari_data import load_minari
+
+        return load_minari(str(path))
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"dataset file {path} does not exist; make one with python -m "
+                                "agents.dataset (or give minari:<dataset id>)")
     try:
         z = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:

@@ -7,8 +7,9 @@ import json
 import sys
 from pathlib import Path
 
+from ..common.cli import user_input_errors
 from . import markdown_table, plot_study, run_study
-from .registry import ALGORITHMS, PROBLEMS, quick_settings
+from .registry import ALGORITHMS, PROBLEMS, make_algorithm, make_problem, quick_settings
 
 
 def _parse_sets(items: list[str], flag: str, parser) -> dict:
@@ -70,6 +71,12 @@ def main(argv: list[str] | None = None) -> int:
     settings = quick_settings(args.algorithm) if args.quick else {}
     settings.update(_parse_sets(args.set, "--set", p))
     problem_kwargs = _parse_sets(args.problem_set, "--problem-set", p)
+    # the settings and problem arguments are built once here: an unknown key or a bad value is
+    # a usage error (exit 2), not a traceback from inside the study
+    with user_input_errors(p, errors=(TypeError,), prefix=f"--set {settings}"):
+        make_algorithm(args.algorithm, **settings)
+    with user_input_errors(p, errors=(TypeError,), prefix=f"--problem-set {problem_kwargs}"):
+        make_problem(args.problem, **problem_kwargs)
     out = args.out
     if out is None:
         tag = "_quick" if args.quick else ""

@@ -67,12 +67,17 @@ def test_a_new_law_is_flown_by_the_evaluation_beside_the_baselines():
     rep = compare(ENV_ID, [ConstantAttitude([0.2])], n_states=3, seed=11, n_expert_states=0,
                   progress=False)
     names = [r["policy"] for r in rep["rows"]]
-    assert names == ["constant attitude", "Pontryagin open loop"]
+    # the random law flies last: the normalised score's 0 reference
+    assert names == ["constant attitude", "Pontryagin open loop", "random"]
     row = rep["rows"][0]
     assert row["n_cases"] == 3 and 0.0 <= row["success_rate"] <= 1.0
     # the open-loop optimum lands every case at the optimum's fuel
     assert rep["rows"][1]["success_rate"] == 1.0
     assert abs(rep["rows"][1]["fuel_gap_pct"]) < 0.05
+    # score: the optimum's replay is 100 and the random law 0 by definition
+    assert rep["rows"][1]["score"] == pytest.approx(100.0)
+    assert rep["rows"][2]["score"] == pytest.approx(0.0)
+    assert rep["rows"][0]["n_cases_in_score"] == 3
 
 
 def test_an_ordinary_law_gets_the_flight_computer_and_navigation_only():
