@@ -61,6 +61,7 @@ minimum-fuel) landing.
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 
@@ -83,12 +84,12 @@ K_R_MAX = 24.0
 
 def check_gain(k_r) -> float:
     """``k_r`` as a float; ``ValueError`` naming it unless finite and in [K_R_MIN, K_R_MAX]."""
-    try:
-        k = float(k_r)
-    except (TypeError, ValueError):
+    if isinstance(k_r, (bool, np.bool_)) or not isinstance(k_r, (numbers.Real, np.floating,
+                                                                 np.integer)):
         raise ValueError(f"k_r = {k_r!r} is not a number; it must be in "
-                         f"[{K_R_MIN:g}, {K_R_MAX:g}]") from None
-    if isinstance(k_r, bool) or not (math.isfinite(k) and K_R_MIN <= k <= K_R_MAX):
+                         f"[{K_R_MIN:g}, {K_R_MAX:g}]")
+    k = float(k_r)
+    if not (math.isfinite(k) and K_R_MIN <= k <= K_R_MAX):
         raise ValueError(f"k_r = {k_r!r} is not allowed; it must be in [{K_R_MIN:g}, "
                          f"{K_R_MAX:g}] (12: Apollo, 6: ZEM/ZEV; below 6 the command "
                          "diverges as t_go -> 0)")
@@ -137,7 +138,8 @@ def zem_zev(r, v, r_t, v_t, g, t_go) -> tuple[np.ndarray, np.ndarray]:
     return zem, zev
 
 
-def augmented_apollo_thrust(r, v, r_t, v_t, a_t, g, t_go, k_r) -> np.ndarray:
+def augmented_apollo_thrust(r, v, r_t, v_t, a_t, g, t_go, k_r, check: bool = True
+                            ) -> np.ndarray:
     """Thrust acceleration of the augmented Apollo law (A) ([L18]; module docstring).
 
     Parameters
@@ -153,6 +155,9 @@ def augmented_apollo_thrust(r, v, r_t, v_t, a_t, g, t_go, k_r) -> np.ndarray:
         Time to go (s), > 0.
     k_r : float
         Gain in [K_R_MIN, K_R_MAX]: 12 is Apollo ([K74]), 6 ZEM/ZEV ([GHW]).
+    check : bool
+        Validate k_r and t_go (default). A caller that validated them once (the t_go root
+        find evaluates the law ~100 times a decision) passes False.
 
     Returns
     -------
@@ -164,10 +169,14 @@ def augmented_apollo_thrust(r, v, r_t, v_t, a_t, g, t_go, k_r) -> np.ndarray:
     ValueError
         t_go ≤ 0 or not finite, k_r out of range.
     """
-    k = check_gain(k_r)
-    t = _check_tgo(t_go)
-    zem, zev = zem_zev(r, v, r_t, v_t, g, t)
+    if check:
+        k = check_gain(k_r)
+        t = _check_tgo(t_go)
+    else:
+        k, t = k_r, t_go
     tc = t[..., None]
+    zem = r_t - (r + v * tc + 0.5 * g * tc * tc)
+    zev = v_t - (v + g * tc)
     return k * zem / (tc * tc) - (2.0 * k / 3.0 - 2.0) * zev / tc + (k / 6.0 - 1.0) * (a_t - g)
 
 
@@ -185,14 +194,14 @@ def zem_zev_thrust(r, v, r_t, v_t, g, t_go) -> np.ndarray:
     return 6.0 * zem / (tc * tc) - 2.0 * zev / tc
 
 
-def free_position_thrust(v, v_t, g, t_go) -> np.ndarray:
+def free_position_thrust(v, v_t, g, t_go, check: bool = True) -> np.ndarray:
     """Energy-optimal thrust acceleration on axes whose final *position* is free: the position
     costate vanishes (transversality), the optimal control is constant, ZEV/t_go.
 
     Used for the planar env's downrange axis (its task has no landing site). Shapes: ``v``,
     ``v_t``, ``g`` (N, d) or broadcastable, ``t_go`` (N,).
     """
-    tc = _check_tgo(t_go)[..., None]
+    tc = (_check_tgo(t_go) if check else t_go)[..., None]
     return (v_t - v - g * tc) / tc
 
 
@@ -226,9 +235,7 @@ def first_crossing(residual, tgo_min, tgo_max, n: int, n_grid: int = 48,
         raise ValueError(f"t_go search interval [{tgo_min!r}, {tgo_max!r}] s is not allowed; "
                          "it needs 0 < tgo_min < tgo_max < inf")
     grid = np.geomspace(tgo_min, tgo_max, n_grid)
-    res = np.empty((n_grid, n))
-    for j, tj in enumerate(grid):
-        res[j] = residual(np.full(n, tj), slice(None))
+    res = residual(np.repeat(grid, n), np.tile(np.arange(n), n_grid)).reshape(n_grid, n)
     ok = res <= 0.0
     has = ok.any(axis=0)
     first = np.where(has, np.argmax(ok, axis=0), np.argmin(res, axis=0))
@@ -248,7 +255,7 @@ def first_crossing(residual, tgo_min, tgo_max, n: int, n_grid: int = 48,
 
 
 def thrust_matched_tgo(command, accel_avail, tgo_min, tgo_max, branch: str = "long",
-                       n_grid: int = 64, n_bisect: int = 40) -> tuple[np.ndarray, np.ndarray]:
+                       n_grid: int = 48, n_bisect: int = 26) -> tuple[np.ndarray, np.ndarray]:
     """t_go ∈ [tgo_min, tgo_max] at which |command(t_go)| = accel_avail, per row.
 
     ``command(t_go (k,), rows) -> (k, d)`` is the law's thrust acceleration as a function of
@@ -292,9 +299,10 @@ def thrust_matched_tgo(command, accel_avail, tgo_min, tgo_max, branch: str = "lo
     acc = np.asarray(accel_avail, dtype=np.float64)
     n = len(acc)
     grid = np.geomspace(tgo_min, tgo_max, n_grid)
-    mags = np.empty((n_grid, n))
-    for j, tj in enumerate(grid):
-        mags[j] = np.linalg.norm(command(np.full(n, tj), slice(None)), axis=1)
+    # the whole grid in one call of the law (rows repeated): ~50 small NumPy calls cost more
+    # than the arithmetic
+    mags = np.linalg.norm(command(np.repeat(grid, n), np.tile(np.arange(n), n_grid)),
+                          axis=1).reshape(n_grid, n)
     jmin = np.argmin(mags, axis=0)
     cols = np.arange(n)
     reach = mags[jmin, cols] <= acc

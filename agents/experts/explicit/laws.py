@@ -127,7 +127,8 @@ class AugmentedApolloLaw(_ExplicitBase):
         ``"rocket"``, ``"matched"`` or ``"countdown"`` (None: rocket on a constant-thrust
         engine, countdown on a throttled one).
     terminal_accel_m_s2 : sequence of d floats or None
-        Target *total* acceleration a_T (local frame, up last) for k_r ≠ 6 (None: zero).
+        Target *total* acceleration a_T (m/s², local frame, up last) for k_r ≠ 6 (None:
+        :meth:`default_terminal_accel`).
     include_rotation : bool
         3D: the Moon's Coriolis and centrifugal terms in the known acceleration.
     name : str
@@ -155,24 +156,46 @@ class AugmentedApolloLaw(_ExplicitBase):
         if self.terminal_accel is not None and self.terminal_accel.shape != (d,):
             raise ValueError(f"terminal_accel_m_s2 = {self.terminal_accel.tolist()} must have "
                              f"{d} components (horizontal..., up) for {computer.env_id}")
-        self.a_t = np.zeros(d) if self.terminal_accel is None else self.terminal_accel
+        self.a_t = self.default_terminal_accel() if self.terminal_accel is None \
+            else self.terminal_accel
         self.rule = self.tgo_rule or ("countdown" if self.throttled else "matched")
         self.prev_thrust = np.full((n, d), np.nan)
         self.t_final = np.full(n, np.nan)
         #: t_go (s) of the last decision, per lander (for analysis)
         self.last_tgo = np.full(n, np.nan)
 
+    def default_terminal_accel(self) -> np.ndarray:
+        """[K74]'s target acceleration a_T (total, local frame, up last) when none is given.
+
+        Planar: zero (the vertical axis ends like a soft touchdown; the downrange axis is free).
+        3D: a_T must be reachable with the thrust inside the scenario's elevation bound (α ≤
+        40° for ``peng2012``): Apollo's a_T = 0 means hovering at the gate, α = 90°, which
+        the env clips to 40° and the landing fails (measured: 0 % on the throttled engine).
+        We take the thrust at the gate braking along the track at α_T = α_max − 5°, with
+        magnitude 3/4 of T at the dry mass, plus gravity at the gate: the lander then
+        arrives from above and behind along −a_T, with its thrust inside the bounds.
+        """
+        if self.planar:
+            return np.zeros(2)
+        alpha = self.alpha_bounds[1] - math.radians(5.0)
+        thrust = 0.75 * self.thrust_n / self.dry_mass_kg
+        r_gate = float(np.linalg.norm(self.target_m))
+        g_gate = self.scaling.mu_m3_s2 / (r_gate * r_gate)
+        return np.array([-thrust * math.cos(alpha), 0.0, thrust * math.sin(alpha) - g_gate])
+
     def command_fn(self, f: LocalFrame):
         """``command(t_go, rows) -> (n, d)`` thrust acceleration of this law in frame ``f``
         (the callable :func:`~agents.experts.explicit.guidance.thrust_matched_tgo` solves)."""
-        r0 = np.zeros_like(f.v)
+        # validated once here, not at each of the ~80 evaluations of the t_go root find
+        gd.check_gain(self.k_r)
 
         def command(t_go, rows):
-            a = gd.augmented_apollo_thrust(r0[rows], f.v[rows], f.r_to_target[rows],
-                                           np.zeros_like(f.v[rows]), self.a_t, f.g[rows],
-                                           t_go, self.k_r)
+            v, g = f.v[rows], f.g[rows]
+            a = gd.augmented_apollo_thrust(0.0, v, f.r_to_target[rows], 0.0, self.a_t, g,
+                                           t_go, self.k_r, check=False)
             if self.planar:  # free landing site: the downrange axis has no position target
-                a[:, 0] = gd.free_position_thrust(f.v[rows, :1], 0.0, f.g[rows, :1], t_go)[:, 0]
+                a[:, 0] = gd.free_position_thrust(v[:, 0:1], 0.0, g[:, 0:1], t_go,
+                                                  check=False)[:, 0]
             return a
 
         return command
