@@ -252,15 +252,32 @@ class GravityTurnLaw(_ExplicitBase):
 
     Constant-thrust engine: full thrust along −v̂ from the first decision (no free parameter:
     the landing succeeds only if the velocity happens to vanish at the surface). Throttled:
-    the magnitude removes the kinetic and potential energy over the straight-line path to the
-    surface, a = sin γ (v²/(2h) + g) with γ the flight-path angle below the horizontal and h the
-    height above the terminal surface (vertical descent: the constant deceleration that stops
-    at the surface).
+    full thrust until the *terminal* gravity turn can take over, then the magnitude that removes
+    the kinetic and potential energy over the straight-line path to the surface,
+    a = sin γ (v²/(2h) + g_v), with γ the flight-path angle below the horizontal, h the height
+    above the terminal surface and g_v the known vertical acceleration (vertical descent: the
+    constant deceleration that stops at the surface). The switch is latched per lander when
+    that demand first reaches ``terminal_fraction`` of T/m (from orbit, γ ≈ 0 and the demand is
+    nil: without the braking phase the lander would never leave its orbit).
+
+    Parameters
+    ----------
+    terminal_fraction : float
+        In (0, 1]; default 0.8 (a 20 % thrust reserve for the terminal phase).
+    include_rotation : bool
+    name : str
     """
 
-    def __init__(self, include_rotation: bool = True, name: str = "gravity turn") -> None:
+    def __init__(self, terminal_fraction: float = 0.8, include_rotation: bool = True,
+                 name: str = "gravity turn") -> None:
         super().__init__(include_rotation)
+        self.terminal_fraction = _check_range("terminal_fraction", terminal_fraction, 1e-3,
+                                              1.0)
         self.name = name
+
+    def reset(self, computer: FlightComputer, case_ids: np.ndarray) -> None:
+        super().reset(computer, case_ids)
+        self.terminal = np.zeros(len(case_ids), dtype=bool)
 
     def act(self, nav: Navigation) -> np.ndarray:
         f = self.frame(nav.state_nd)
@@ -269,9 +286,10 @@ class GravityTurnLaw(_ExplicitBase):
         if self.throttled:
             speed = np.linalg.norm(f.v, axis=1)
             sin_gamma = np.clip(-f.v[:, -1] / np.maximum(speed, 1e-9), 0.0, 1.0)
-            g0 = np.abs(f.g[:, -1])
-            need = sin_gamma * (speed * speed / (2.0 * np.maximum(f.height_m, 1.0)) + g0)
-            accel = np.minimum(need, accel)
+            g_v = np.maximum(-f.g[:, -1], 0.0)
+            need = sin_gamma * (speed * speed / (2.0 * np.maximum(f.height_m, 1.0)) + g_v)
+            self.terminal |= need >= self.terminal_fraction * accel
+            accel = np.where(self.terminal, np.minimum(need, accel), accel)
         return self.to_action(direction * accel[:, None], f.mass_kg)
 
 

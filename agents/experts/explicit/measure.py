@@ -27,7 +27,7 @@ from agents.common.families import family_of
 from agents.common.law_specs import LawContext, build_law
 from agents.common.rollout import Rollout, fly
 
-__all__ = ["measure", "failure_modes", "markdown", "main"]
+__all__ = ["measure", "failure_modes", "markdown", "plot_tracks", "main"]
 
 
 def failure_modes(out: Rollout, propellant_kg: np.ndarray, success_speed_m_s: float = 5.0,
@@ -105,10 +105,65 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         fails = ", ".join(f"{k} {v}" for k, v in r["failures"].items() if v) or "–"
         lines.append(
             f"| {r['law']} | {engine} | {r['n']} | {100 * r['success_rate']:.1f} | "
-            f"{f(r['touchdown_speed_p99_m_s'], '.2f')} | {f(r['miss_p99_m'], '.0f')} | "
+            f"{f(r['touchdown_speed_p99_m_s'], '.2f')} | {f(r['miss_p99_m'], '.1f')} | "
             f"{f(r['fuel_gap_p50_pct'], '+.2f')} / {f(r['fuel_gap_p99_pct'], '+.2f')} "
             f"[{r['n_gap']}] | {r['us_per_decision']:.1f} | {fails} |")
     return "\n".join(lines)
+
+
+def plot_tracks(env_id: str, specs: list[str], path, case: int = 0, seed: int = 2026,
+                env_kwargs: dict[str, Any] | None = None):
+    """Plot case ``case`` flown by each law: height above the terminal surface against the
+    range to go (planar: against the downrange flown) and speed against time; written
+    atomically to ``path`` (PNG)."""
+    import gymnasium as gym
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    import lunar_env  # noqa: F401
+    from agents.experts.explicit.frames import pinpoint_frame, planar_frame
+    from lunar_env.scenarios import PlanarScenario
+    from optimizers.common.checkpoint import save_figure_atomic
+
+    env = gym.make(env_id, **(env_kwargs or {}))
+    scenario = env.unwrapped.scenario
+    env.close()
+    s = scenario.scaling()
+    context = LawContext(env_id=env_id, env_kwargs=dict(env_kwargs or {}), scenario=scenario)
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4))
+    for spec in specs:
+        out = fly(env_id, build_law(spec, context), case + 1, seed=seed, env_kwargs=env_kwargs,
+                  record=[case], record_final=True)
+        rec = out.records[case]
+        y = rec["state_nd"]
+        if isinstance(scenario, PlanarScenario):
+            f = planar_frame(y, s, scenario.surface_radius_m)
+            x_km = (y[:, 2] - y[0, 2]) * scenario.surface_radius_m / 1e3
+            xlabel = "downrange flown (km)"
+        else:
+            f = pinpoint_frame(y, s, np.asarray(scenario.plane_normal()),
+                               scenario.target_position_m(), scenario.body.spin_rate_rad_s)
+            x_km = np.linalg.norm(f.r_to_target[:, :2], axis=1) / 1e3
+            xlabel = "range to the target (km)"
+        ok = "landed" if out.is_success[case] else "failed"
+        label = f"{spec} ({ok})"
+        ax1.plot(x_km, f.height_m / 1e3, label=label)
+        ax2.plot(rec["t_s"], np.linalg.norm(f.v, axis=1), label=label)
+    if not isinstance(scenario, PlanarScenario):
+        ax1.invert_xaxis()
+    ax1.set(xlabel=xlabel, ylabel="height above the terminal surface (km)")
+    ax2.set(xlabel="time (s)", ylabel="speed relative to the surface (m/s)")
+    engine = "throttled" if (env_kwargs or {}).get("throttle_channel") else "constant thrust"
+    fig.suptitle(f"{env_id}, {engine}, case {case} (seed {seed})")
+    ax1.legend(fontsize=7)
+    ax1.grid(alpha=0.3)
+    ax2.grid(alpha=0.3)
+    fig.tight_layout()
+    out_path = save_figure_atomic(fig, path, dpi=110)
+    plt.close(fig)
+    return out_path
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -123,10 +178,16 @@ def main(argv: list[str] | None = None) -> int:
                    help="cases whose per-case optimum gives the fuel gap (default: all)")
     p.add_argument("--env-kwargs", default=None, help="JSON dict of env arguments")
     p.add_argument("--json", default=None, help="also write the rows to this JSON file")
+    p.add_argument("--plot", default=None,
+                   help="only plot case 0 of each law to this PNG (no table)")
     args = p.parse_args(argv)
     kw = json.loads(args.env_kwargs) if args.env_kwargs else None
     if kw is not None and not isinstance(kw, dict):
         p.error(f"--env-kwargs {args.env_kwargs!r} must be a JSON object")
+    if args.plot:
+        written = plot_tracks(args.env, args.laws, args.plot, seed=args.seed, env_kwargs=kw)
+        print(f"Written: {written}")
+        return 0
     rows = measure(args.env, args.laws, args.n, args.seed, args.gap_cases, kw)
     print(markdown(rows))
     if args.json:
