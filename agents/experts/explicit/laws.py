@@ -208,9 +208,11 @@ class AugmentedApolloLaw(_ExplicitBase):
         command = self.command_fn(f)
         t_go = (1.0 + self.tgo_margin) * self.solve_tgo(f, command, accel)
         if self.rule == "countdown":
+            # the frame was extrapolated by the lead: its clock reads t + τ
+            t_frame = nav.t_s + self.lead_s
             new = ~np.isfinite(self.t_final)
-            self.t_final[new] = nav.t_s[new] + t_go[new]
-            t_go = np.maximum(self.t_final - nav.t_s, TGO_MIN_S)
+            self.t_final[new] = t_frame[new] + t_go[new]
+            t_go = np.maximum(self.t_final - t_frame, TGO_MIN_S)
         a = command(t_go, slice(None))
         if not self.throttled:  # the engine gives T/m: fly the command's direction
             a *= (accel / np.maximum(np.linalg.norm(a, axis=1), 1e-300))[:, None]
