@@ -131,14 +131,26 @@ class AugmentedApolloLaw(_ExplicitBase):
         :meth:`default_terminal_accel`).
     include_rotation : bool
         3D: the Moon's Coriolis and centrifugal terms in the known acceleration.
+    terminal_s : float
+        Constant-thrust engine: once t_go ≤ this (s), thrust opposite the surface-relative
+        velocity (a gravity-turn finish, which brings the speed to its minimum, where the env
+        cuts the engine off). In [0, 60]; default 0 (off).
+    aim_above_m : float
+        Aim this many metres above the terminal surface, in [0, 100]; default 0. (The env
+        ends the episode at the surface crossing and cuts the engine off at the speed minimum:
+        a constant-thrust lander that nulls its speed a few metres up falls the rest softly,
+        one that arrives late crosses the surface still braking.)
     name : str
     """
 
     def __init__(self, k_r: float = gd.K_R_APOLLO, tgo_margin: float = 0.0,
                  lead_s: float = 0.0, tgo_rule: str | None = None,
                  terminal_accel_m_s2=None, include_rotation: bool = True,
+                 terminal_s: float = 0.0, aim_above_m: float = 0.0,
                  name: str | None = None) -> None:
         super().__init__(include_rotation)
+        self.terminal_s = _check_range("terminal_s", terminal_s, 0.0, 60.0)
+        self.aim_above_m = _check_range("aim_above_m", aim_above_m, 0.0, 100.0)
         self.k_r = gd.check_gain(k_r)
         self.tgo_margin = _check_range("tgo_margin", tgo_margin, -0.5, 1.0)
         self.lead_s = _check_range("lead_s", lead_s, 0.0, 10.0)
@@ -203,6 +215,11 @@ class AugmentedApolloLaw(_ExplicitBase):
     def act(self, nav: Navigation) -> np.ndarray:
         f = self.frame(nav.state_nd)
         accel = self.thrust_n / f.mass_kg
+        if self.aim_above_m > 0.0:
+            rel = f.r_to_target.copy()
+            rel[:, -1] += self.aim_above_m
+            f = LocalFrame(r_to_target=rel, v=f.v, g=f.g, mass_kg=f.mass_kg,
+                           height_m=f.height_m)
         if self.lead_s > 0.0:
             f = self._lead(f, accel)
         command = self.command_fn(f)
@@ -216,6 +233,11 @@ class AugmentedApolloLaw(_ExplicitBase):
         a = command(t_go, slice(None))
         if not self.throttled:  # the engine gives T/m: fly the command's direction
             a *= (accel / np.maximum(np.linalg.norm(a, axis=1), 1e-300))[:, None]
+            if self.terminal_s > 0.0:
+                # the last seconds: null the velocity (the env cuts the engine off at the
+                # speed minimum), instead of timing a 1-s-held command to the arrival
+                fin = t_go <= self.terminal_s
+                a[fin] = accel[fin, None] * gd.gravity_turn_direction(f.v[fin])
         self.prev_thrust = a
         self.last_tgo = t_go
         return self.to_action(a, f.mass_kg)

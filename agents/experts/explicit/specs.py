@@ -8,6 +8,8 @@ Syntax (``NAME[:KEY=VALUE,...]``, no argument)::
     apollo:kr=9,tgo_margin=0.02,lead=2.2
     zem-zev:tgo=rocket           another t_go rule (matched, matched-short, rocket, countdown)
     zem-zev:rotation=0           3D: leave the Moon's Coriolis/centrifugal terms out
+    apollo:tgo=rocket,terminal=4 a constant-thrust finish against the velocity (t_go ≤ 4 s)
+    apollo:tgo=rocket,tgo_margin=0.02,aim=5   aim 5 m above the gate (3D, constant thrust)
     gravity-turn                 thrust opposite the surface-relative velocity
 
 Options of ``apollo`` / ``zem-zev``:
@@ -21,6 +23,9 @@ key            meaning                                                         d
 ``tgo``        t_go rule (:data:`~agents.experts.explicit.laws.TGO_RULES`)     matched
                (``countdown`` on a throttled engine)
 ``rotation``   1/0: the Moon's rotation terms in the known acceleration (3D)   1
+``terminal``   constant thrust: t_go (s) ∈ [0, 60] below which the law thrusts  0 (off)
+               against the velocity (gravity-turn finish)
+``aim``        aim point (m) ∈ [0, 100] above the terminal surface             0
 =============  ==============================================================  ==========
 
 ``gravity-turn`` takes ``rotation`` only. The engine (constant thrust or throttled) is the
@@ -35,7 +40,7 @@ from agents.experts.explicit.laws import AugmentedApolloLaw, GravityTurnLaw
 
 __all__ = ["apollo_from_spec", "zem_zev_from_spec", "gravity_turn_from_spec"]
 
-_OPTIONS = ("kr", "tgo_margin", "lead", "tgo", "rotation")
+_OPTIONS = ("kr", "tgo_margin", "lead", "tgo", "rotation", "terminal", "aim")
 
 
 def _flag(text: str) -> bool:
@@ -62,6 +67,8 @@ def _augmented(spec, default_k_r: float) -> GuidanceLaw:
             lead_s=spec.option("lead", float, 0.0),
             tgo_rule=spec.option("tgo", str, None),
             include_rotation=spec.option("rotation", _flag, True),
+            terminal_s=spec.option("terminal", float, 0.0),
+            aim_above_m=spec.option("aim", float, 0.0),
             name=spec.text or spec.name)
     except ValueError as exc:
         raise ValueError(f"law {spec.text or spec.name!r}: {exc}") from None

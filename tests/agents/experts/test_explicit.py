@@ -184,7 +184,11 @@ def test_specs_parse_gains_and_options():
     assert (law.k_r, law.tgo_margin, law.lead_s, law.tgo_rule, law.include_rotation) == \
         (9.5, 0.02, 2.2, "rocket", False)
     assert law.name == "apollo:kr=9.5,tgo_margin=0.02,lead=2.2,tgo=rocket,rotation=0"
+    law = build_law("apollo:tgo=rocket,terminal=4,aim=5", ctx)
+    assert (law.terminal_s, law.aim_above_m) == (4.0, 5.0)
     assert isinstance(build_law("gravity-turn", ctx), GravityTurnLaw)
+    with pytest.raises(ValueError, match="aim_above_m"):
+        build_law("apollo:aim=-1", ctx)
     with pytest.raises(ValueError, match="unknown option"):
         build_law("apollo:gain=3", ctx)
     with pytest.raises(ValueError, match="k_r"):
