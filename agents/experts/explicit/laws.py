@@ -11,14 +11,18 @@ How an acceleration law flies a constant-thrust engine (decision, issue 30)
 ---------------------------------------------------------------------------
 The envs' default engine burns at full thrust T and can only be steered, as the papers'
 vehicles. The law thrusts along its commanded thrust acceleration and chooses t_go at every
-decision so that the command's magnitude *equals* T/m (:func:`~agents.experts.explicit.
-guidance.thrust_matched_tgo`, the smallest such t_go): the command is then flown exactly. The
-option ``tgo_margin`` = μ scales that root, t_go = (1 + μ) t_matched (μ > 0 plans a gentler
-descent than the engine gives, so the surplus thrust is spent braking early and re-planned).
+decision so that the command's magnitude *equals* T/m (``tgo=matched``, the default:
+:func:`~agents.experts.explicit.guidance.thrust_matched_tgo` on its long, braking branch;
+``matched-short`` takes the short, hurried root): the command is then flown exactly.
+``tgo=rocket`` takes instead the burn time in which the rocket equation gains |ZEV|
+(:func:`~agents.experts.explicit.guidance.rocket_tgo`); the command's direction is flown at
+full thrust. The option ``tgo_margin`` = μ scales the rule's t_go, t_go = (1 + μ)·t_rule.
+The laws re-plan every decision; the surplus or shortfall of a command flown at T/m is
+corrected at the next one.
 
 With the throttle channel (``gym.make(id, throttle_channel=True)``) the law is the textbook one:
-t_go counts down from a planned descent time t_f = (1 + μ) t_matched fixed at the first
-decision (``tgo=countdown``), and the throttle is |a_thrust| m / T.
+t_go counts down from a planned descent time t_f = (1 + μ)·t_matched fixed at the first
+decision (``tgo=countdown``, the default there), and the throttle is |a_thrust| m / T.
 
 The planar env has no landing site (its task ends at any downrange), so on the downrange axis
 the law uses the free-terminal-position optimum (:func:`~agents.experts.explicit.guidance.

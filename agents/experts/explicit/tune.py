@@ -78,7 +78,8 @@ def trial_score(env_id: str, env_kwargs: dict[str, Any] | None, spec: str, n: in
 
 
 def _spec(base: str, k_r: float, margin: float) -> str:
-    return f"{base}:kr={k_r:.3f},tgo_margin={margin:.4f}"
+    sep = "," if ":" in base else ":"  # options join the base's own options, if any
+    return f"{base}{sep}kr={k_r:.3f},tgo_margin={margin:.4f}"
 
 
 def tune(env_id: str = "LunarSoftLanding-v0", env_kwargs: dict[str, Any] | None = None,
@@ -103,8 +104,8 @@ def tune(env_id: str = "LunarSoftLanding-v0", env_kwargs: dict[str, Any] | None 
     workers, address
         Executor (:func:`optimizers.common.executor.get_executor`).
     base : str
-        Law name the parameters are given to (``apollo``; the gain is tuned, so ``zem-zev`` is
-        the same family).
+        Law spec the parameters are added to (``apollo``, or with fixed options such as
+        ``apollo:tgo=rocket,aim=5``; the gain is tuned, so ``zem-zev`` is the same family).
     """
     import gymnasium as gym
     import optuna
@@ -181,6 +182,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--sampler-seed", type=int, default=0)
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--address", default=None, help="Ray cluster (default: local processes)")
+    p.add_argument("--base", default="apollo",
+                   help="law spec the tuned kr and tgo_margin are added to, e.g. "
+                        "'apollo:tgo=rocket,aim=5' (default apollo)")
     p.add_argument("--quick", action="store_true", help="8 trials of 40 cases (a smoke run)")
     p.add_argument("--json", default=None, help="write the result to this JSON file")
     args = p.parse_args(argv)
@@ -189,9 +193,9 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--env-kwargs {args.env_kwargs!r} must be a JSON object")
     trials, cases = (8, 40) if args.quick else (args.trials, args.cases)
     res = tune(args.env, kw, trials, cases, args.seed, args.sampler_seed, args.workers,
-               args.address)
+               args.address, base=args.base)
     b, t = res["best"], res["textbook"]
-    print(f"textbook (k_r=12, μ=0): score {t['score']:.3f}, success "
+    print(f"textbook ({args.base}, k_r=12, μ=0): score {t['score']:.3f}, success "
           f"{100 * t['success_rate']:.1f} %, gap {t['gap_mean_pct']:+.3f} %")
     print(f"tuned    {b['spec']}: score {b['score']:.3f}")
     if args.json:
