@@ -41,7 +41,9 @@ v_T = ZEV + v + g t_go gives a_thrust = 12 ZEM/t_go² − 6 ZEV/t_go + a_T − g
              = (k_r/t_go²)(r_T − r − v t_go) + (2/t_go)(1 − k_r/3)(v_T − v)
                + (k_r/6 − 1) a_T − g
 
-is (K) at k_r = 12 and (Z) at k_r = 6 (tested). In closed loop with g uniform and t_go
+is (K) at k_r = 12 and (Z) at k_r = 6 (tested). (Derived here as the one-gain family through
+(K) and (Z); the two end points are what the tests pin, the form in between was not checked
+against [L18]'s text.) In closed loop with g uniform and t_go
 counting down exactly, the position error goes as c₁ t_go³ + c₂ t_go^(k_r/3)
 (Euler–Cauchy equation of (A)), so the command stays bounded to touchdown only for k_r ≥ 6:
 :data:`K_R_MIN`. Larger gains hold the trajectory to a steeper final approach; [L18] uses
