@@ -53,11 +53,12 @@ counting down exactly, the position error goes as c₁ t_go³ + c₂ t_go^(k_r/3
 
 Time to go
 ----------
-:func:`thrust_matched_tgo` chooses, for a constant-thrust engine that can only be steered, the
-smallest t_go at which the magnitude of (A)'s thrust acceleration equals the available T/m (a
-bracketed root find, batched): the command is then flyable exactly, at full thrust, and the
-shortest such t_go is the closest of the law's family to the minimum-time (for constant thrust:
-minimum-fuel) landing.
+For a constant-thrust engine that can only be steered, :func:`thrust_matched_tgo` chooses a
+t_go at which the magnitude of (A)'s thrust acceleration equals the available T/m (a bracketed
+root find, batched), so that the command is flyable exactly at full thrust. There are usually
+two such roots, a hurried one and a braking one (see its docstring). :func:`rocket_tgo`
+instead takes the burn time in which the rocket equation gains |ZEV|, which accounts for T/m
+growing as propellant burns.
 """
 
 from __future__ import annotations
