@@ -5,6 +5,12 @@
     python -m agents.evaluate --model runs/ppo/LunarSoftLanding-v0_1          # + baselines
     python -m agents.evaluate --model a/model.zip --model b/ --n-states 200 --out results/cmp
     python -m agents.evaluate --no-open-loop --expert-states 0 --model runs/ppo/...
+    python -m agents.evaluate --laws apollo zem-zev gravity-turn apollo:kr=9,tgo_margin=0.02
+    python -m agents.evaluate --env LunarPinpointLanding-v2 --env-kwargs \
+        '{"throttle_channel": true}' --laws apollo zem-zev --n-states 200
+
+``--laws`` takes law specs ``NAME[:ARG][:KEY=VALUE,...]`` (:mod:`agents.common.law_specs`;
+the explicit laws' options: :mod:`agents.experts.explicit.specs`), flown beside the models.
 
 What is flown and measured: :mod:`agents.evaluation.compare`.
 """
@@ -15,6 +21,7 @@ import argparse
 from pathlib import Path
 
 from agents.common.law import GuidanceLaw
+from agents.common.law_specs import LawContext, build_law, law_names, parse_law_spec
 from agents.common.sb3_law import SB3Law
 from agents.evaluation.compare import (
     DEFAULT_ENV_ID,
@@ -40,6 +47,10 @@ def main(argv: list[str] | None = None) -> int:
                         "at its optimal thrust; the per-case optimum is solved at that thrust)")
     p.add_argument("--model", action="append", default=[],
                    help="run directory or model .zip (repeatable)")
+    p.add_argument("--laws", nargs="+", default=[], metavar="SPEC",
+                   help="guidance laws by spec, NAME[:ARG][:KEY=VALUE,...] (e.g. apollo "
+                        "zem-zev:kr=8 gravity-turn); known names: "
+                        + ", ".join(law_names()))
     p.add_argument("--n-states", type=int, default=DEFAULT_N_STATES)
     p.add_argument("--seed", type=int, default=DEFAULT_SEED)
     p.add_argument("--expert-states", type=int, default=None,
@@ -93,6 +104,8 @@ def main(argv: list[str] | None = None) -> int:
         env_kwargs = {**(env_kwargs or {}), **extra}
     with user_input_errors(p):
         check_env(env_id, env_kwargs)
+    if args.laws:
+        laws += _laws_from_specs(p, args.laws, env_id, env_kwargs)
     import os
 
     from optimizers.common.executor import RAY_ADDRESS_ENV, get_executor
@@ -111,6 +124,29 @@ def main(argv: list[str] | None = None) -> int:
     publish_report(report, args.out or Path("results") / "evaluate", args.json)
     return 0
 
+
+def _laws_from_specs(parser: argparse.ArgumentParser, specs: list[str], env_id: str,
+                     env_kwargs: dict | None) -> list[GuidanceLaw]:
+    """The laws of ``--laws`` (a bad spec is a usage error naming it). Laws that need the
+    per-case optimum (``open-loop``) are refused: :func:`compare` flies it itself."""
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401  (registers the env ids)
+
+    env = gym.make(env_id, **(env_kwargs or {}))
+    try:
+        context = LawContext(env_id=env_id, env_kwargs=dict(env_kwargs or {}),
+                             scenario=env.unwrapped.scenario)
+    finally:
+        env.close()
+    laws = []
+    for text in specs:
+        try:
+            spec = parse_law_spec(text)
+            laws.append(build_law(spec, context))
+        except ValueError as exc:
+            parser.error(f"--laws {text!r}: {exc}")
+    return laws
 
 
 

@@ -6,7 +6,10 @@ A *law spec* is a short string, ``NAME[:ARG][:KEY=VALUE[,KEY=VALUE...]]``::
     dagger:runs/imitation/LunarSoftLanding-v0_dagger   an imitation run (bc, dagger)
     open-loop                               each case's optimum (nominal plant), replayed
     feedback                                the family's re-planning expert (Pontryagin / GPM)
-    apollo:kr=10                            a law with options (see each law's documentation)
+    apollo                                  explicit guidance: Apollo (k_r = 12), ``zem-zev``
+                                            (k_r = 6), ``gravity-turn``
+    apollo:kr=10,tgo_margin=0.02,lead=2.2   a law with options (syntax and options of the
+                                            explicit laws: :mod:`agents.experts.explicit.specs`)
 
 A part with ``=`` holds options (``key=value`` pairs, comma-separated); a part without is the
 law's argument (a path). The registry :data:`LAW_ENTRY_POINTS` maps each name to a factory
@@ -35,6 +38,9 @@ LAW_ENTRY_POINTS: dict[str, str] = {
     "dagger": "agents.common.sb3_law:law_from_spec",
     "open-loop": "agents.experts.laws:open_loop_from_spec",
     "feedback": "agents.experts.laws:feedback_from_spec",
+    "apollo": "agents.experts.explicit.specs:apollo_from_spec",
+    "zem-zev": "agents.experts.explicit.specs:zem_zev_from_spec",
+    "gravity-turn": "agents.experts.explicit.specs:gravity_turn_from_spec",
 }
 
 
