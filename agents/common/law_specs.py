@@ -6,6 +6,7 @@ A *law spec* is a short string, ``NAME[:ARG][:KEY=VALUE[,KEY=VALUE...]]``::
     dagger:runs/imitation/LunarSoftLanding-v0_dagger   an imitation run (bc, dagger)
     open-loop                               each case's optimum (nominal plant), replayed
     feedback                                the family's re-planning expert (Pontryagin / GPM)
+    convex:every=2,nodes=40                 SCvx re-planning every 2 s on 40 nodes
     apollo:kr=10                            a law with options (see each law's documentation)
 
 A part with ``=`` holds options (``key=value`` pairs, comma-separated); a part without is the
@@ -35,6 +36,7 @@ LAW_ENTRY_POINTS: dict[str, str] = {
     "dagger": "agents.common.sb3_law:law_from_spec",
     "open-loop": "agents.experts.laws:open_loop_from_spec",
     "feedback": "agents.experts.laws:feedback_from_spec",
+    "convex": "agents.experts.convex:convex_from_spec",
 }
 
 

@@ -317,6 +317,8 @@ class SuccessiveConvexification:
         ``"throttled"``: Γ ∈ [0, 1] (the envs' throttle channel, [003]'s engine).
     solver : str
         cvxpy solver name. Default ``"CLARABEL"``.
+    solver_options : dict, optional
+        Settings passed to the solver on every solve (default: the solver's defaults).
 
     Raises
     ------
@@ -335,7 +337,7 @@ class SuccessiveConvexification:
                  trust_region_max: float = 2.0, virtual_control_weight: float = 1e3,
                  max_iter: int = 40, step_tol: float = 1e-7, cost_tol: float = 1e-8,
                  defect_tol: float = 1e-9, engine: str = "constant",
-                 solver: str = "CLARABEL") -> None:
+                 solver: str = "CLARABEL", solver_options: dict | None = None) -> None:
         def _int(name, v, lo):
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < lo:
                 raise ValueError(f"{name} = {v!r} is not allowed; it must be an integer >= {lo}")
@@ -369,6 +371,10 @@ class SuccessiveConvexification:
         if not isinstance(solver, str) or not solver:
             raise ValueError(f"solver = {solver!r} must be a cvxpy solver name, e.g. 'CLARABEL'")
         self.solver = solver.upper()
+        if solver_options is not None and not isinstance(solver_options, dict):
+            raise ValueError(f"solver_options = {solver_options!r} must be a dict of the "
+                             "solver's settings (e.g. {'tol_feas': 1e-7}) or None")
+        self.solver_options = dict(solver_options or {})
         self._built: dict = {}
 
     def __repr__(self) -> str:
@@ -449,8 +455,9 @@ class SuccessiveConvexification:
                 cons.append(expr <= model.path_hi[i] + slack[i, :])
         lo_tf, hi_tf = ocp.tf_bounds_nd
         cons += [sigma >= 1e-3 * hi_tf, sigma <= hi_tf,
-                 cp.abs(X - P["Xr"]) <= P["eta"], cp.abs(U - P["Ur"]) <= P["eta"],
-                 cp.abs(sigma - P["sr"]) <= P["eta"]]
+                 X - P["Xr"] <= P["eta"], P["Xr"] - X <= P["eta"],
+                 U - P["Ur"] <= P["eta"], P["Ur"] - U <= P["eta"],
+                 sigma - P["sr"] <= P["eta"], P["sr"] - sigma <= P["eta"]]
         lam = self.virtual_control_weight
         penalty = lam * (cp.sum(cp.abs(V)) + cp.sum(slack))
         objective = cp.Minimize(-X[model.mass_index, K - 1] + penalty)
@@ -605,7 +612,7 @@ class SuccessiveConvexification:
             P["eta"].value = eta
             ts = time.perf_counter()
             try:
-                prob.solve(solver=self.solver, warm_start=True)
+                prob.solve(solver=self.solver, warm_start=True, **self.solver_options)
                 status = prob.status
             except Exception as exc:  # noqa: BLE001  (a solver failure is a value)
                 status = f"solver error: {exc}"
