@@ -21,8 +21,12 @@ Decisions
 - A re-plan is adopted when SCvx converged, or when its last convex solve was optimal and its
   interval defects are below 1e-6 (normalised); otherwise the lander keeps flying its previous
   plan (the failure is counted in :attr:`ConvexReplanningLaw.n_failed`).
-- No re-plan closer than ``min_tgo_s`` to the planned touchdown: the last plan is flown to the
-  end (the horizon would otherwise shrink to a few seconds on K nodes).
+- The re-planning period is ``every_s`` but at most a third of the last plan's time to go, so
+  the plan is refreshed at least three times over any remaining horizon (the touchdown speed
+  is set by the last seconds: the engine cuts off at the speed minimum and the lander falls
+  the height that is left); no re-plan closer than ``min_tgo_s`` to the planned touchdown.
+- The action is held for the env's decision interval ``dt_s``: the law flies the plan's
+  control at the middle of that interval.
 - After the plan's end the last control is held (the env ends the burn at zero speed).
 """
 
@@ -59,7 +63,7 @@ class ConvexReplanningLaw(GuidanceLaw):
     engine : {"constant", "throttled"}
         The papers' full-thrust engine, or the throttled one (needs the env's throttle channel).
     min_tgo_s : float
-        No re-plan when the planned time to go is below this (s, ≥ 0). Default 20.
+        No re-plan when the planned time to go is below this (s, ≥ 0). Default 3.
 
     Attributes
     ----------
@@ -78,7 +82,7 @@ class ConvexReplanningLaw(GuidanceLaw):
 
     def __init__(self, scenario, *, every_s: float = 5.0, n_nodes: int = 30, iters: int = 2,
                  first_iter: int = 30, engine: str = "constant",
-                 min_tgo_s: float = 20.0) -> None:
+                 min_tgo_s: float = 3.0) -> None:
         from optimizers.transcription.convex import SuccessiveConvexification
 
         if not isinstance(scenario, PlanarScenario | PinpointScenario):
@@ -151,7 +155,8 @@ class ConvexReplanningLaw(GuidanceLaw):
             return True
         elapsed = t_s - self.plan_t_s[i]
         tgo = plan.tf_s - elapsed
-        return elapsed >= self.every_s - 1e-9 and tgo > self.min_tgo_s
+        period = min(self.every_s, plan.tf_s / 3.0)
+        return elapsed >= period - 1e-9 and tgo > self.min_tgo_s
 
     def act(self, nav: Navigation) -> np.ndarray:
         """Actions (N, n_act) float32: each active lander's planned control now, after a
@@ -175,7 +180,8 @@ class ConvexReplanningLaw(GuidanceLaw):
                 elif old is None:  # no plan at all: fly the nominal one
                     self.plans[i], self.plan_t_s[i] = self.nominal_plan(), t
             plan = self.plans[i]
-            tau = (t - self.plan_t_s[i]) / time_s
+            # the action is held for one decision interval: fly the plan at its middle
+            tau = (t + 0.5 * self.computer.dt_s - self.plan_t_s[i]) / time_s
             k = int(np.clip(np.searchsorted(plan.t_nd, tau, side="right") - 1, 0,
                             len(plan.model_controls) - 1))
             controls[i] = plan.model_controls[k]
@@ -196,7 +202,7 @@ class ConvexReplanningLaw(GuidanceLaw):
 def convex_from_spec(spec, context) -> GuidanceLaw:
     """``convex[:every=S,nodes=K,iters=I,first_iter=J,engine=constant|throttled,min_tgo=S]``:
     :class:`ConvexReplanningLaw` on the context's nominal scenario (defaults 5 s, 30 nodes,
-    2 iterations per re-plan, 30 for the first plan, constant engine, 20 s)."""
+    2 iterations per re-plan, 30 for the first plan, constant engine, 3 s)."""
     spec.require_known_options(("every", "nodes", "iters", "first_iter", "engine", "min_tgo"))
     if spec.argument is not None:
         raise ValueError(f"law {spec.text!r} takes no argument (options as convex:every=2,...)")
@@ -207,6 +213,6 @@ def convex_from_spec(spec, context) -> GuidanceLaw:
         iters=spec.option("iters", int, 2),
         first_iter=spec.option("first_iter", int, 30),
         engine=spec.option("engine", str, "constant"),
-        min_tgo_s=spec.option("min_tgo", float, 20.0))
+        min_tgo_s=spec.option("min_tgo", float, 3.0))
     law.name = spec.label() if spec.options else "convex"
     return law
