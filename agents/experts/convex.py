@@ -69,6 +69,9 @@ class ConvexReplanningLaw(GuidanceLaw):
     ----------
     replan_s : list of float
         Wall time of every re-plan (s), the first plans included.
+    replan_log : list of tuple
+        Per re-plan: (wall s, the convex solver's own time s, cvxpy ``solve`` calls s, SCvx
+        iterations, whether it was a lander's first plan).
     n_replans, n_failed : int
 
     Raises
@@ -114,6 +117,7 @@ class ConvexReplanningLaw(GuidanceLaw):
         self.planar = isinstance(scenario, PlanarScenario)
         self._nominal = None
         self.replan_s: list[float] = []
+        self.replan_log: list[tuple[float, float, float, int, bool]] = []
         self.n_replans = 0
         self.n_failed = 0
 
@@ -124,10 +128,13 @@ class ConvexReplanningLaw(GuidanceLaw):
             self._nominal = self.solver.solve(self.ocp)
         return self._nominal
 
-    def _plan(self, x_nd: np.ndarray, guess, max_iter: int):
+    def _plan(self, x_nd: np.ndarray, guess, max_iter: int, first: bool):
         t0 = time.perf_counter()
         sol = self.solver.solve(self.ocp, guess, initial_state=x_nd, max_iter=max_iter)
         self.replan_s.append(time.perf_counter() - t0)
+        self.replan_log.append((self.replan_s[-1], float(sol.extra["solver_s"]),
+                                float(sol.extra["solve_s"]), int(sol.n_iter),
+                                bool(first)))
         self.n_replans += 1
         ok = sol.extra["converged"] or (
             sol.extra["statuses"] and sol.extra["statuses"][-1] == "optimal"
@@ -174,7 +181,8 @@ class ConvexReplanningLaw(GuidanceLaw):
                     elapsed = (t - self.plan_t_s[i]) / time_s
                     guess = old.guess().shifted(min(elapsed, 0.999 * old.tf_nd))
                     iters = self.iters
-                new = self._plan(np.asarray(nav.state_nd[i], dtype=np.float64), guess, iters)
+                new = self._plan(np.asarray(nav.state_nd[i], dtype=np.float64), guess, iters,
+                                 old is None)
                 if new is not None:
                     self.plans[i], self.plan_t_s[i] = new, t
                 elif old is None:  # no plan at all: fly the nominal one
