@@ -383,8 +383,12 @@ class SuccessiveConvexification:
 
     # ---- construction ----------------------------------------------------------------------
     def _key(self, ocp) -> tuple:
-        return (type(ocp).__name__, repr(ocp.params), getattr(ocp, "scenario", None).name,
-                getattr(ocp, "min_altitude_m", None), getattr(ocp, "floor_margin_m", None))
+        # everything the built problem bakes in: model constants, the scenario (surface, mass
+        # floor, tf bound) and the pinpoint path options; the start and the linearisation are
+        # parameters
+        return (type(ocp).__name__, repr(ocp.params), repr(getattr(ocp, "scenario", None)),
+                getattr(ocp, "min_altitude_m", None), getattr(ocp, "floor_margin_m", None),
+                getattr(ocp, "floor_margin_range_m", None))
 
     def _build(self, ocp) -> dict:
         key = self._key(ocp)
@@ -686,6 +690,9 @@ class SuccessiveConvexification:
             errors = {k: math.inf for k in ocp.tolerances}
             ok, why, fuel = False, "the propagation is not finite", math.inf
         success = bool(converged and ok)
+        if not converged:
+            message += (f" (largest interval defect {np.abs(lin['defect']).max():.2g}: virtual "
+                        "control still needed, the start may be infeasible)")
         msg = f"{message}; {why}"
         t_nd = sr * np.linspace(0.0, 1.0, K)
         mc = model.model_controls(Ur.T)

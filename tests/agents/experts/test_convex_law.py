@@ -45,11 +45,13 @@ def test_throttled_engine_needs_the_throttle_channel():
         fly(PLANAR, law, 1, seed=0)
 
 
-def test_flies_dispersed_soft_landings_to_touchdown():
-    law = build_law("convex:every=30,nodes=20", _context())
-    out = fly(PLANAR, law, 2, seed=7)
+def test_flies_a_dispersed_soft_landing_to_touchdown():
+    law = build_law("convex:every=60,nodes=20", _context())
+    out = fly(PLANAR, law, 1, seed=7)
     assert out.is_success.all(), out.touchdown_speed_m_s
-    assert law.n_replans >= 2 * 10 and law.n_failed == 0
+    # every 60 s, then at least three times over each remaining horizon near the end
+    assert law.n_replans >= 12 and law.n_failed == 0
+    assert len(law.replan_log) == law.n_replans and law.replan_log[0][-1]  # first plan flagged
     assert np.all(np.isfinite(out.fuel_used_kg))
     # every case re-planned from its own navigated start: fuel within a few % of the nominal
     nominal = law.nominal_plan().fuel_kg
