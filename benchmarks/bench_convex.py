@@ -19,9 +19,10 @@ tightness) and wall-time ratios SCvx / peer.
 Part 2 — re-planning. The convex law (``convex:every=10``, :mod:`agents.experts.convex`) flies N
 dispersed cases of each env (``LunarSoftLanding-v0``, ``LunarPinpointLanding-v2``) with
 :func:`agents.common.rollout.fly`; per re-plan after each lander's first plan: wall time median
-and p90, the share of it spent inside Clarabel, SCvx iterations; the landing rate; and the fuel
-gap to each case's optimum (the env family's per-case solver: Pontryagin planar, GPM + shooting
-pinpoint, cached on disk). Cases: the evaluation's seed (2026) by default.
+and p90 (and the process CPU time); the share of all re-plans' wall time spent inside Clarabel;
+SCvx iterations; the landing rate; and the fuel gap to each case's optimum (the env family's
+per-case solver: Pontryagin planar, GPM + shooting pinpoint, cached on disk). Cases: the
+evaluation's seed (2026) by default.
 
 BLAS runs on one thread and Clarabel is single-threaded, so the process CPU time of a re-plan
 is its one-core cost; it is reported beside the wall time (``--pin`` also pins the process to
@@ -37,6 +38,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -52,6 +54,31 @@ def _pin_one_core() -> str:
     return "not pinned (no sched_setaffinity)"
 
 
+@contextlib.contextmanager
+def _clarabel_timer():
+    """Benchmark instrumentation: wall time inside cvxpy's hand-over to Clarabel (its data
+    update and solve; the problem is already stuffed), summed into the yielded list's first
+    entry. (Clarabel's own ``solve_time`` reads above the wall time around it here, so it is
+    not used.)"""
+    from cvxpy.reductions.solvers.conic_solvers.clarabel_conif import CLARABEL
+
+    total = [0.0]
+    original = CLARABEL.solve_via_data
+
+    def timed(self, *args, **kwargs):
+        t = time.perf_counter()
+        try:
+            return original(self, *args, **kwargs)
+        finally:
+            total[0] += time.perf_counter() - t
+
+    CLARABEL.solve_via_data = timed
+    try:
+        yield total
+    finally:
+        CLARABEL.solve_via_data = original
+
+
 def _scvx(ocp, n_nodes: int, engine: str = "constant") -> dict:
     from optimizers.certification import certify
     from optimizers.transcription.convex import SuccessiveConvexification
@@ -61,7 +88,8 @@ def _scvx(ocp, n_nodes: int, engine: str = "constant") -> dict:
     first = solver.solve(ocp)
     first_s = time.perf_counter() - t0
     t0 = time.perf_counter()
-    res = solver.solve(ocp)
+    with _clarabel_timer() as clarabel_s:
+        res = solver.solve(ocp)
     cold_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     warm = solver.solve(ocp, res.guess())
@@ -70,7 +98,7 @@ def _scvx(ocp, n_nodes: int, engine: str = "constant") -> dict:
     return {"engine": engine, "n_nodes": n_nodes, "success": bool(res.success),
             "fuel_kg": res.fuel_kg, "tf_s": res.tf_s, "n_iter": res.n_iter,
             "first_solve_s": first_s, "build_s": first.extra["build_s"], "cold_solve_s": cold_s,
-            "clarabel_s": res.extra["solver_s"], "warm_resolve_s": warm_s,
+            "clarabel_s": clarabel_s[0], "warm_resolve_s": warm_s,
             "warm_iter": warm.n_iter, "tightness": res.extra["tightness"],
             "min_throttle": res.extra["min_throttle"], "replay_success": cert.replay_success,
             "replay_errors": cert.replay_terminal_errors, "optimum_fuel_kg": cert.optimum_fuel_kg,
@@ -128,7 +156,8 @@ def bench_replanning(env_id: str, n_cases: int, spec: str, seed: int) -> dict:
     law = build_law(spec, LawContext(env_id, {}, scenario))
     env.close()
     t0 = time.perf_counter()
-    out = fly(env_id, law, n_cases, seed=seed)
+    with _clarabel_timer() as clarabel_s:
+        out = fly(env_id, law, n_cases, seed=seed)
     wall = time.perf_counter() - t0
     # fuel gap to each case's optimum (the family's per-case solver, cached for pinpoint)
     optimum = family_of(scenario).per_case_optimum(
@@ -138,7 +167,8 @@ def bench_replanning(env_id: str, n_cases: int, spec: str, seed: int) -> dict:
     gap_pct = 100.0 * gap / optimum.fuel_kg[both]
     log = np.array([r for r in law.replan_log if not r[5]], dtype=float).reshape(-1, 6)
     wall_ms, cpu_ms = 1e3 * log[:, 0], 1e3 * log[:, 1]
-    share = log[:, 2] / np.maximum(log[:, 0], 1e-12)
+    # share of all re-plans' wall time (first plans included) spent in Clarabel
+    share = clarabel_s[0] / max(sum(r[0] for r in law.replan_log), 1e-12)
     speed = out.touchdown_speed_m_s
     miss = out.miss_distance_m
     return {"env_id": env_id, "spec": spec, "n_cases": n_cases, "seed": seed,
@@ -158,7 +188,7 @@ def bench_replanning(env_id: str, n_cases: int, spec: str, seed: int) -> dict:
             "replan_ms_p50": float(np.median(wall_ms)), "replan_ms_p90":
             float(np.percentile(wall_ms, 90)), "replan_cpu_ms_p50": float(np.median(cpu_ms)),
             "replan_cpu_ms_p90": float(np.percentile(cpu_ms, 90)),
-            "clarabel_share_p50": float(np.median(share)),
+            "clarabel_share": float(share),
             "iters_mean": float(np.mean(log[:, 4])), "us_per_decision": out.us_per_decision,
             "wall_s": wall, "failed_cases": [int(i) for i in np.flatnonzero(~out.is_success)]}
 
@@ -225,7 +255,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"wall median {r['replan_ms_p50']:.0f} ms, p90 {r['replan_ms_p90']:.0f} ms "
                   f"(CPU median {r['replan_cpu_ms_p50']:.0f} ms, p90 "
                   f"{r['replan_cpu_ms_p90']:.0f} ms), "
-                  f"Clarabel share {100 * r['clarabel_share_p50']:.0f} %, "
+                  f"Clarabel share {100 * r['clarabel_share']:.0f} %, "
                   f"{r['iters_mean']:.2f} SCvx iterations on average; "
                   f"{r['us_per_decision'] / 1e3:.1f} ms per decision")
             if r["n_gap_cases"]:
