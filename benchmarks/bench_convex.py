@@ -1,6 +1,6 @@
 """SCvx (convex re-planning) against the project's Pontryagin and GPM + shooting solvers.
 
-``python benchmarks/bench_convex.py [--quick] [--json FILE] [--cases N] [--nodes K]``
+``python benchmarks/bench_convex.py [--quick] [--json FILE] [--cases N] [--nodes K] [--iters I]``
 
 Part 1 — open-loop optimum, nominal start, timed in the same run:
 
@@ -200,6 +200,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cases", type=int, default=None, help="cases per env (default 10)")
     ap.add_argument("--nodes", type=int, default=30, help="SCvx nodes K (default 30)")
     ap.add_argument("--every", type=float, default=10.0, help="re-planning period (s)")
+    ap.add_argument("--iters", type=int, default=2, help="SCvx iterations per re-plan")
     ap.add_argument("--seed", type=int, default=2026,
                     help="case set of part 2 (default 2026, the evaluation's)")
     ap.add_argument("--pin", action="store_true",
@@ -243,7 +244,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  ratio SCvx cold / GPM + shooting: {q['ratio_cold_to_gpm_shooting']:.3f}; "
               f"/ dense collocation: {q['ratio_cold_to_dense']:.3f}")
     if args.part in ("all", "replan"):
-        spec = f"convex:every={args.every:g},nodes={args.nodes}"
+        spec = f"convex:every={args.every:g},nodes={args.nodes},iters={args.iters}"
         res["replanning"] = []
         for env_id in ("LunarSoftLanding-v0", "LunarPinpointLanding-v2"):
             r = bench_replanning(env_id, n_cases, spec, args.seed)
