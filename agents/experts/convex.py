@@ -53,7 +53,7 @@ class ConvexReplanningLaw(GuidanceLaw):
     scenario : PlanarScenario or PinpointScenario
         The nominal scenario the flight computer plans with.
     every_s : float
-        Re-planning period (s of mission time, > 0). Default 5.
+        Re-planning period (s of mission time, > 0). Default 10 (the measured setting).
     n_nodes : int
         Nodes K of every plan (≥ 2). Default 30.
     iters : int
@@ -84,7 +84,7 @@ class ConvexReplanningLaw(GuidanceLaw):
 
     name = "convex re-planning"
 
-    def __init__(self, scenario, *, every_s: float = 5.0, n_nodes: int = 30, iters: int = 2,
+    def __init__(self, scenario, *, every_s: float = 10.0, n_nodes: int = 30, iters: int = 2,
                  first_iter: int = 30, engine: str = "constant",
                  min_tgo_s: float = 3.0) -> None:
         from optimizers.transcription.convex import SuccessiveConvexification
@@ -211,14 +211,14 @@ class ConvexReplanningLaw(GuidanceLaw):
 
 def convex_from_spec(spec, context) -> GuidanceLaw:
     """``convex[:every=S,nodes=K,iters=I,first_iter=J,engine=constant|throttled,min_tgo=S]``:
-    :class:`ConvexReplanningLaw` on the context's nominal scenario (defaults 5 s, 30 nodes,
+    :class:`ConvexReplanningLaw` on the context's nominal scenario (defaults 10 s, 30 nodes,
     2 iterations per re-plan, 30 for the first plan, constant engine, 3 s)."""
     spec.require_known_options(("every", "nodes", "iters", "first_iter", "engine", "min_tgo"))
     if spec.argument is not None:
         raise ValueError(f"law {spec.text!r} takes no argument (options as convex:every=2,...)")
     law = ConvexReplanningLaw(
         context.scenario,
-        every_s=spec.option("every", float, 5.0),
+        every_s=spec.option("every", float, 10.0),
         n_nodes=spec.option("nodes", int, 30),
         iters=spec.option("iters", int, 2),
         first_iter=spec.option("first_iter", int, 30),
