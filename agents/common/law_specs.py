@@ -10,6 +10,7 @@ A *law spec* is a short string, ``NAME[:ARG][:KEY=VALUE[,KEY=VALUE...]]``::
                                             (k_r = 6), ``gravity-turn``
     apollo:kr=10,tgo_margin=0.02,lead=2.2   a law with options (syntax and options of the
                                             explicit laws: :mod:`agents.experts.explicit.specs`)
+    convex:every=2,nodes=40                 SCvx re-planning every 2 s on 40 nodes
 
 A part with ``=`` holds options (``key=value`` pairs, comma-separated); a part without is the
 law's argument (a path). The registry :data:`LAW_ENTRY_POINTS` maps each name to a factory
@@ -41,6 +42,7 @@ LAW_ENTRY_POINTS: dict[str, str] = {
     "apollo": "agents.experts.explicit.specs:apollo_from_spec",
     "zem-zev": "agents.experts.explicit.specs:zem_zev_from_spec",
     "gravity-turn": "agents.experts.explicit.specs:gravity_turn_from_spec",
+    "convex": "agents.experts.convex:convex_from_spec",
 }
 
 
