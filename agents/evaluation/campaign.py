@@ -40,13 +40,13 @@ from typing import Any
 
 import numpy as np
 
+from agents.evaluation.statistics import footprint_ellipse, wilson_interval
 from lunar_env.uncertainty import UncertaintyModel, resolve_uncertainty
 from optimizers.common.checkpoint import atomic_write_bytes
 from optimizers.common.executor import ResultStore, Task, TaskKey, get_executor, run_tasks
 
 __all__ = ["CampaignConfig", "CampaignResult", "run_campaign", "fly_chunk", "reference_chunk",
-           "wilson_interval", "summarise_law", "campaign_summary", "DEFAULT_SCALES",
-           "SCHEMA_VERSION"]
+           "summarise_law", "campaign_summary", "DEFAULT_SCALES", "SCHEMA_VERSION"]
 
 #: error scales of the robustness curve (× the campaign's uncertainty set)
 DEFAULT_SCALES = (0.0, 0.5, 1.0, 2.0, 3.0)
@@ -210,20 +210,6 @@ def fly_chunk(spec_text: str, env_id: str, env_kwargs: dict, model_dict: dict, s
 # -------------------------------------------------------------------------------------------
 
 
-def wilson_interval(successes: int, n: int, z: float = 1.959963984540054
-                    ) -> tuple[float, float]:
-    """Wilson score interval (95 % by default) of a success rate ``successes / n``."""
-    if n <= 0:
-        return (float("nan"), float("nan"))
-    p = successes / n
-    den = 1.0 + z * z / n
-    center = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    # exact ends at 0 and n (the formula gives them only to rounding)
-    return (0.0 if successes == 0 else max(0.0, center - half),
-            1.0 if successes == n else min(1.0, center + half))
-
-
 def _pct(x: np.ndarray, q: float) -> float | None:
     """Percentile ``q`` of ``x``, where NaN counts as +inf (a case with no value is the worst:
     e.g. no touchdown at all); None (JSON null) if that is not finite."""
@@ -238,24 +224,6 @@ def _finite_pct(x: np.ndarray, q: float) -> float | None:
     x = np.asarray(x, dtype=np.float64)
     x = x[np.isfinite(x)]
     return float(np.percentile(x, q)) if len(x) else None
-
-
-def footprint_ellipse(offsets_m: np.ndarray, n_sigma: float = 3.0) -> dict[str, float] | None:
-    """The ``n_sigma`` ellipse of landing points (k, 2) (downrange, crossrange, m): centre,
-    semi-axes (m) and the major axis's angle from downrange (deg); None with < 3 points."""
-    pts = np.asarray(offsets_m, dtype=np.float64)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if len(pts) < 3:
-        return None
-    mean = pts.mean(axis=0)
-    w, v = np.linalg.eigh(np.cov(pts.T))
-    w = np.maximum(w, 0.0)
-    major = v[:, 1]
-    return {"center_downrange_m": float(mean[0]), "center_crossrange_m": float(mean[1]),
-            "semi_major_m": float(n_sigma * math.sqrt(w[1])),
-            "semi_minor_m": float(n_sigma * math.sqrt(w[0])),
-            "angle_deg": float(math.degrees(math.atan2(major[1], major[0]))),
-            "n_sigma": float(n_sigma), "points": int(len(pts))}
 
 
 def summarise_law(rows: dict[str, np.ndarray], reference: dict[str, np.ndarray],

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.evaluation.statistics import wilson_interval
 from optimizers.common.checkpoint import save_figure_atomic
 
 __all__ = ["plot_campaign"]
@@ -98,8 +99,6 @@ def plot_campaign(result, out_dir: str | Path, has_target: bool) -> list[Path]:
                 continue
             s = [p[0] for p in pts]
             rate = [p[1] / p[2] for p in pts]
-            from agents.evaluation.campaign import wilson_interval
-
             ci = np.array([wilson_interval(p[1], p[2]) for p in pts])
             err = np.clip([np.subtract(rate, ci[:, 0]), ci[:, 1] - rate], 0.0, None)
             ax.errorbar(s, rate, yerr=err,

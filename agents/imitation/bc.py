@@ -56,7 +56,7 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
     """
     import torch as th
 
-    from agents.imitation.data import load_run_dataset
+    from agents.imitation.sources import load_run_dataset
 
     ds, env_kwargs = load_run_dataset(run)
     bc = hp["bc"]

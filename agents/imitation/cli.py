@@ -174,12 +174,12 @@ def main(argv: list[str] | None = None) -> int:
     else:
         if args.dataset is None:
             parser.error("--dataset is required (make one with python -m agents.dataset)")
-        from agents.imitation.data import load_dataset
+        from agents.imitation.sources import open_dataset
 
         with user_input_errors(parser):
             check_env(args.env)
             hp, run = _resolve(args)
-            dataset = load_dataset(args.dataset)
+            dataset = open_dataset(args.dataset)
             if dataset.meta["env_id"] != args.env:
                 raise ValueError(f"--dataset {args.dataset} is for {dataset.meta['env_id']!r}, "
                                  f"not --env {args.env!r}")

@@ -34,7 +34,7 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     import torch as th
     from stable_baselines3 import PPO
 
-    from agents.imitation.data import load_run_dataset
+    from agents.imitation.sources import load_run_dataset
 
     ds, env_kwargs = load_run_dataset(run)
     dg = hp["dagger"]

@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["FORMAT_VERSION", "ImitationDataset", "load_dataset", "load_run_dataset",
-           "save_dataset", "PER_TRAJECTORY_KEYS", "OPTIONAL_PER_TRAJECTORY_KEYS", "PER_SAMPLE_KEYS"]
+__all__ = ["FORMAT_VERSION", "ImitationDataset", "load_dataset", "save_dataset",
+           "PER_TRAJECTORY_KEYS", "OPTIONAL_PER_TRAJECTORY_KEYS", "PER_SAMPLE_KEYS"]
 
 FORMAT_VERSION = 1
 PER_TRAJECTORY_KEYS = ("initial_state_si", "solver_success", "fuel_kg", "tf_s",
@@ -98,8 +98,8 @@ def save_dataset(path: str | Path, meta: dict[str, Any], arrays: dict[str, np.nd
 
 
 def load_dataset(path: str | Path) -> ImitationDataset:
-    """Read a dataset written by :func:`generate` / :func:`save_dataset`, or a Minari dataset
-    given as ``minari:<dataset id>`` (:func:`agents.imitation.minari_data.load_minari`).
+    """Read a dataset file written by :func:`generate` / :func:`save_dataset` (a Minari
+    dataset ``minari:<dataset id>`` is read by :func:`agents.imitation.sources.open_dataset`).
 
     Raises
     ------
@@ -107,10 +107,6 @@ def load_dataset(path: str | Path) -> ImitationDataset:
         The file has no ``meta``, a different ``format_version`` than :data:`FORMAT_VERSION`,
         or lacks a required array.
     """
-    if str(path).startswith("minari:"):
-        from agents.imitation.minari_data import load_minari
-
-        return load_minari(str(path))
     if not Path(path).is_file():
         raise FileNotFoundError(f"dataset file {path} does not exist; make one with python -m "
                                 "agents.dataset (or give minari:<dataset id>)")
@@ -139,13 +135,3 @@ def load_dataset(path: str | Path) -> ImitationDataset:
     if missing:
         raise ValueError(f"{path} lacks arrays {missing}")
     return ImitationDataset(meta, arrays)
-
-
-def load_run_dataset(run: dict[str, Any]) -> tuple[ImitationDataset, dict[str, Any]]:
-    """The dataset of an imitation run (``run["dataset"]``) and the env arguments it was made
-    with; ValueError if it was made for another env than ``run["env"]``."""
-    ds = load_dataset(run["dataset"])
-    if ds.meta["env_id"] != run["env"]:
-        raise ValueError(f"dataset {run['dataset']} is for {ds.meta['env_id']!r}, not "
-                         f"{run['env']!r}")
-    return ds, ds.meta.get("env_kwargs") or {}

@@ -11,12 +11,8 @@ import pytest
 
 from agents.campaign import format_table, main
 from agents.common.law import GuidanceLaw
-from agents.evaluation.campaign import (
-    CampaignConfig,
-    footprint_ellipse,
-    run_campaign,
-    wilson_interval,
-)
+from agents.evaluation.campaign import CampaignConfig, run_campaign
+from agents.evaluation.statistics import footprint_ellipse, wilson_interval
 
 ENV = "LunarSoftLanding-v0"
 

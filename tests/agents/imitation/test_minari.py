@@ -24,6 +24,7 @@ from agents.imitation.minari_data import (  # noqa: E402
     record_episodes,
     write_minari,
 )
+from agents.imitation.sources import open_dataset  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[3]
 ENV_ID = "LunarSoftLanding-v0"
@@ -114,7 +115,7 @@ def test_recovered_env_replays_the_episodes(exported):
 
 def test_minari_dataset_reads_as_the_imitation_dataset_it_came_from(exported):
     _, ds = exported
-    back = load_dataset(f"minari:{DATASET_ID}")
+    back = open_dataset(f"minari:{DATASET_ID}")
     assert back.meta["env_id"] == ENV_ID and back.meta["scenario"] == ds.meta["scenario"]
     a = ds.arrays
     for i in np.unique(a["traj_index"]):
@@ -164,7 +165,7 @@ def test_pinpoint_noise_free_export_gives_bc_the_same_data_and_policy(minari_dir
                              "--workers", "1", "--out", str(out), "--no-progress",
                              "--minari", "optimal-v0"]) == 0
     a = load_dataset(out)
-    b = load_dataset(f"minari:lunar/{env_id}/optimal-v0")
+    b = open_dataset(f"minari:lunar/{env_id}/optimal-v0")
     assert np.array_equal(a.observations, b.observations)
     assert np.array_equal(a.actions, b.actions)
     assert np.array_equal(a.arrays["traj_index"], b.arrays["traj_index"])
