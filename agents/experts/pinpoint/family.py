@@ -70,6 +70,7 @@ class PinpointFamily(EnvFamily):
         fuel = np.full(len(states_nd), np.nan)
         veh = scenario.vehicle
         mdot = veh.thrust_n / veh.exhaust_velocity_m_s
+        nominal = PinpointFeedback(scenario)
         it = range(len(states_nd))
         if progress:
             from tqdm.auto import tqdm
@@ -77,8 +78,19 @@ class PinpointFamily(EnvFamily):
             it = tqdm(it, desc="omniscient optimum (Pontryagin)", unit="case")
         for k in it:
             kt, kc = float(thrust_scale[k]), float(isp_scale[k])
-            fb = PinpointFeedback(plant_scenario(scenario, kt, kc))
-            sol = fb.solve(np.asarray(states_nd[k], dtype=np.float64))
+            x0 = np.asarray(states_nd[k], dtype=np.float64)
+            # continuation in the plant: the nominal engine's extremal from the same start is
+            # the guess for the true engine's (a few per cent away)
+            start = nominal.solve(x0)
+            if start is None:
+                continue
+            plant = PinpointFeedback(plant_scenario(scenario, kt, kc))
+            sol = solve_extremal(plant.k, x0, start.z, step_s=plant.step_s)
+            if not sol.converged:
+                try:
+                    sol = plant.solve(x0, start.z)
+                except RuntimeError:  # no extremal of this plant from its crude guesses
+                    sol = None
             if sol is not None and sol.converged and abs(sol.beyond_m) < TARGET_REACHED_M:
                 fuel[k] = mdot * kt / kc * sol.tgo_s
         return fuel
