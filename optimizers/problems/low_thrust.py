@@ -54,7 +54,7 @@ import numba
 import numpy as np
 
 from lunar_env import get_scenario
-from lunar_env.integrators import PLANAR, integrate, integrate_prepared
+from lunar_env.integrators import PLANAR, integrate, integrate_prepared, params_rows
 from lunar_env.scenarios import PlanarScenario
 
 from ..common.problem import PenaltyGroup, Problem, central_difference_jacobian
@@ -195,7 +195,7 @@ class LowThrustTransferProblem(Problem):
         if consts is None:
             par = bool(self.parallel) and numba.config.NUMBA_NUM_THREADS > 1
             consts = (np.ascontiguousarray(np.broadcast_to(self.y0_nd, (n, 5))), np.zeros(n),
-                      np.full(n, np.nan), self.params.as_array(), par)
+                      np.full(n, np.nan), params_rows(self.params, n), par)
             if len(self._consts) > 16:
                 self._consts.clear()
             self._consts[n] = consts

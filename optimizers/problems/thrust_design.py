@@ -70,7 +70,13 @@ import functools
 import numpy as np
 
 from lunar_env import get_scenario
-from lunar_env.integrators import PLANAR, RadiusCrossing, integrate, integrate_prepared
+from lunar_env.integrators import (
+    PLANAR,
+    RadiusCrossing,
+    integrate,
+    integrate_prepared,
+    params_rows,
+)
 from lunar_env.scenarios import PlanarScenario
 
 from ..common.problem import PenaltyGroup, Problem, central_difference_jacobian
@@ -215,7 +221,7 @@ class ThrustDesignProblem(Problem):
             import numba
 
             consts = (np.ascontiguousarray(np.broadcast_to(self.y0_nd, (n, 5))), np.zeros(n),
-                      np.full(n, self._r_floor_nd), self.params.as_array(),
+                      np.full(n, self._r_floor_nd), params_rows(self.params, n),
                       self.parallel if self.parallel is not None else
                       (n >= 32 and numba.config.NUMBA_NUM_THREADS > 1))
             if len(self._consts) > 16:
