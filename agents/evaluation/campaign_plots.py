@@ -46,6 +46,7 @@ def plot_campaign(result, out_dir: str | Path, has_target: bool) -> list[Path]:
     if limit:
         ax.axvline(limit["speed_m_s"], color="k", ls="--", lw=0.8, label="success limit")
     ax.set_xscale("symlog", linthresh=1.0)
+    ax.set_xlim(left=0.0)  # speeds are >= 0
     ax.set_xlabel("touchdown (gate) speed (m/s)")
     ax.set_ylabel("fraction of cases")
     ax.set_title(title, fontsize=9)
@@ -84,6 +85,7 @@ def plot_campaign(result, out_dir: str | Path, has_target: bool) -> list[Path]:
         gap = 100.0 * (rows["fuel_kg"] - ref) / ref
         ax.plot(rows["touchdown_speed_m_s"], gap, ".", ms=3, alpha=0.6, label=name)
     ax.set_xscale("symlog", linthresh=1.0)
+    ax.set_xlim(left=0.0)
     ax.set_xlabel("touchdown (gate) speed (m/s)")
     ax.set_ylabel("fuel gap to the omniscient optimum (%)")
     ax.set_title(title, fontsize=9)
