@@ -193,6 +193,17 @@ def bench_replanning(env_id: str, n_cases: int, spec: str, seed: int) -> dict:
             "wall_s": wall, "failed_cases": [int(i) for i in np.flatnonzero(~out.is_success)]}
 
 
+def _print_scvx(s: dict, t: dict) -> None:
+    """The SCvx lines of one case (constant and throttled engine)."""
+    print(f"  SCvx constant     {s['fuel_kg']:9.4f} kg  {s['cold_solve_s'] * 1e3:8.0f} ms cold "
+          f"({s['n_iter']} it, Clarabel {s['clarabel_s'] * 1e3:.0f} ms; first solve with "
+          f"compile {s['first_solve_s']:.2f} s; warm re-solve {s['warm_resolve_s'] * 1e3:.0f}"
+          f" ms) gap {s['fuel_gap_pct']:+.4f} % replay ok {s['replay_success']} "
+          f"tightness {s['tightness']:.7f}")
+    print(f"  SCvx throttled    {t['fuel_kg']:9.4f} kg  gap {t['fuel_gap_pct']:+.4f} % "
+          f"min throttle {t['min_throttle']:.4f} tightness {t['tightness']:.7f}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="2 cases per env in part 2")
@@ -219,13 +230,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\nzhu2007 (planar), K = {args.nodes}")
         print(f"  Pontryagin        {p['pontryagin']['fuel_kg']:9.4f} kg  "
               f"{p['pontryagin']['wall_s'] * 1e3:8.0f} ms")
-        print(f"  SCvx constant     {s['fuel_kg']:9.4f} kg  {s['cold_solve_s'] * 1e3:8.0f} ms cold "
-              f"({s['n_iter']} it, Clarabel {s['clarabel_s'] * 1e3:.0f} ms; first solve with "
-              f"compile {s['first_solve_s']:.2f} s; warm re-solve {s['warm_resolve_s'] * 1e3:.0f}"
-              f" ms) gap {s['fuel_gap_pct']:+.4f} % replay ok {s['replay_success']} "
-              f"tightness {s['tightness']:.7f}")
-        print(f"  SCvx throttled    {t['fuel_kg']:9.4f} kg  gap {t['fuel_gap_pct']:+.4f} % "
-              f"min throttle {t['min_throttle']:.4f} tightness {t['tightness']:.7f}")
+        _print_scvx(s, t)
         print(f"  ratio SCvx cold / Pontryagin: {p['ratio_cold_to_pontryagin']:.2f}")
         res["peng2012"] = q = bench_pinpoint(args.nodes)
         s, t = q["scvx"], q["scvx_throttled"]
@@ -234,13 +239,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{q['gpm_shooting']['wall_s'] * 1e3:8.0f} ms")
         print(f"  dense collocation {q['dense_collocation']['fuel_kg']:9.4f} kg  "
               f"{q['dense_collocation']['wall_s'] * 1e3:8.0f} ms (the certifier)")
-        print(f"  SCvx constant     {s['fuel_kg']:9.4f} kg  {s['cold_solve_s'] * 1e3:8.0f} ms cold "
-              f"({s['n_iter']} it, Clarabel {s['clarabel_s'] * 1e3:.0f} ms; first solve with "
-              f"compile {s['first_solve_s']:.2f} s; warm re-solve {s['warm_resolve_s'] * 1e3:.0f}"
-              f" ms) gap {s['fuel_gap_pct']:+.4f} % replay ok {s['replay_success']} "
-              f"tightness {s['tightness']:.7f}")
-        print(f"  SCvx throttled    {t['fuel_kg']:9.4f} kg  gap {t['fuel_gap_pct']:+.4f} % "
-              f"min throttle {t['min_throttle']:.4f} tightness {t['tightness']:.7f}")
+        _print_scvx(s, t)
         print(f"  ratio SCvx cold / GPM + shooting: {q['ratio_cold_to_gpm_shooting']:.3f}; "
               f"/ dense collocation: {q['ratio_cold_to_dense']:.3f}")
     if args.part in ("all", "replan"):
