@@ -89,6 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     """Command-line entry point (``python -m agents.campaign``)."""
     from agents.common.law_specs import law_names
     from agents.evaluation.campaign import DEFAULT_SCALES, CampaignConfig, run_campaign
+    from optimizers.common.cli import check_env, user_input_errors
     from optimizers.common.executor import ResultStore
 
     p = argparse.ArgumentParser(prog="python -m agents.campaign",
@@ -124,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if not args.laws:
         p.error("--laws is required (e.g. --laws open-loop feedback); --list-laws names them")
-    try:
+    with user_input_errors(p, errors=(TypeError,)):
         unc = args.uncertainty
         if unc.lstrip().startswith("{"):
             unc = json.loads(unc)
@@ -133,24 +134,15 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"--env-kwargs {args.env_kwargs!r} is not a JSON dict")
         if env_kwargs is None:
             env_kwargs = _run_env_kwargs(args.laws)
-        import gymnasium as gym
-
-        import lunar_env  # noqa: F401
-
-        if args.env not in gym.registry:
-            known = sorted(k for k in gym.registry if k.startswith("Lunar"))
-            raise ValueError(f"--env {args.env!r} is not registered; known: {', '.join(known)}")
         config = CampaignConfig(env_id=args.env, uncertainty=unc, cases=args.cases,
                                 seed=args.seed, laws=tuple(args.laws), env_kwargs=env_kwargs,
                                 chunk=args.chunk, scales=tuple(args.scales),
                                 curve_cases=args.curve_cases)
-        gym.make(args.env, **env_kwargs, uncertainty=config.uncertainty).close()
+        check_env(args.env, {**env_kwargs, "uncertainty": config.uncertainty})
         out = Path(args.out or f"results/campaign/{args.env}-{config.uncertainty.name}-"
                                f"{args.cases}-{args.seed}")
         # a directory of another campaign is refused here, before any work
         ResultStore(out / "store", identity=config.identity(), fmt="json")
-    except (ValueError, TypeError, json.JSONDecodeError) as exc:
-        p.error(str(exc))
     print(f"campaign -> {out}", flush=True)
     result = run_campaign(config, out, workers=args.workers, address=args.address,
                           plots=not args.no_plots, json_file=args.json)

@@ -51,12 +51,13 @@ from typing import Any
 
 import numba
 import numpy as np
+from numba.extending import register_jitable
 
 from .validation import InvalidTypeError, require_number
 
 __all__ = ["UncertaintyModel", "EpisodeErrors", "NAMED_SETS", "get_uncertainty",
            "resolve_uncertainty", "error_stream", "draw_errors", "navigation_noise",
-           "radar_weight", "errors_from_option", "navigation_errors",
+           "radar_weight", "errors_from_option", "episode_errors", "navigation_errors",
            "TRUNCATION_SIGMA", "N_NORMALS"]
 
 #: every error draw is a standard normal truncated at this many σ
@@ -461,6 +462,14 @@ def navigation_noise(keys: np.ndarray, counters: np.ndarray, n_components: int =
     return out
 
 
+@register_jitable
+def _shrink(altitude_m, radar_altitude_m, fraction):
+    """The radar's multiplier of a navigation error at ``altitude_m`` (scalars or arrays): 1
+    above the radar altitude, falling linearly to ``fraction`` at the surface."""
+    h = np.minimum(np.maximum(altitude_m / radar_altitude_m, 0.0), 1.0)
+    return fraction + (1.0 - fraction) * h
+
+
 @numba.njit(cache=True)
 def _navigation_errors_kernel(keys, counters, altitude_m, bias_p, bias_v, sig_p, sig_v,
                               radar_altitude_m, near_p, near_v, n_axes, dpos, dvel
@@ -468,9 +477,8 @@ def _navigation_errors_kernel(keys, counters, altitude_m, bias_p, bias_v, sig_p,
     z = np.empty((keys.shape[0], 2 * n_axes))
     _noise_kernel(keys, counters, z)
     for i in range(keys.shape[0]):
-        h = min(max(altitude_m[i] / radar_altitude_m, 0.0), 1.0)
-        wp = near_p + (1.0 - near_p) * h
-        wv = near_v + (1.0 - near_v) * h
+        wp = _shrink(altitude_m[i], radar_altitude_m, near_p)
+        wv = _shrink(altitude_m[i], radar_altitude_m, near_v)
         for j in range(3):
             if j < n_axes:
                 dpos[i, j] = wp * (bias_p[i, j] + z[i, 2 * j] * sig_p[j])
@@ -505,9 +513,19 @@ def radar_weight(model: UncertaintyModel, altitude_m: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """Navigation error multipliers (position, velocity) at ``altitude_m`` (n,) each: 1 above
     the radar altitude, falling linearly to the near-ground fractions at the surface."""
-    h = np.clip(np.asarray(altitude_m, dtype=np.float64) / model.radar_altitude_m, 0.0, 1.0)
-    fp, fv = model.near_ground_position_fraction, model.near_ground_velocity_fraction
-    return fp + (1.0 - fp) * h, fv + (1.0 - fv) * h
+    h = np.asarray(altitude_m, dtype=np.float64)
+    return (_shrink(h, model.radar_altitude_m, model.near_ground_position_fraction),
+            _shrink(h, model.radar_altitude_m, model.near_ground_velocity_fraction))
+
+
+def episode_errors(model: UncertaintyModel, rng: np.random.Generator, pinned=None,
+                   row: int | None = None) -> EpisodeErrors:
+    """The errors of an episode starting now: drawn from ``rng`` (:func:`draw_errors`), or the
+    ``reset(options={"errors": pinned})`` ones (:func:`errors_from_option`; ``row``: the
+    sub-env of a vector env). Drawn even when pinned, so the stream stays where an unpinned
+    episode would leave it."""
+    drawn = draw_errors(model, rng)
+    return drawn if pinned is None else errors_from_option(pinned, row)
 
 
 def errors_from_option(value, row: int | None = None) -> EpisodeErrors:

@@ -400,13 +400,12 @@ def run_campaign(config: CampaignConfig, out_dir: str | Path, *, workers: int = 
         tasks.append(Task(TaskKey("reference", config.seed, k), reference_chunk,
                           (config.env_id, config.env_kwargs, model_dict, a, n, config.seed)))
     curve_n = min(config.curve_cases, config.cases)
+    # every law at scale 1 on all cases (the table); the curve's other scales on curve_n cases
     scales = sorted({1.0, *map(float, config.scales)})
     for text in config.laws:
         label = parse_law_spec(text).label()
         for scale in scales:
             n_cases = config.cases if scale == 1.0 else curve_n
-            if scale != 1.0 and scale not in map(float, config.scales):
-                continue
             for k, (a, n) in enumerate(config.chunks(n_cases)):
                 tasks.append(Task(TaskKey(f"{label}@x{scale:g}", config.seed, k), fly_chunk,
                                   (text, config.env_id, config.env_kwargs, model_dict, scale,

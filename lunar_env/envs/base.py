@@ -253,9 +253,8 @@ class LanderEnv(_TaskDescription, gym.Env):
         if b.uncertain:
             if seed is not None or self._error_rng is None:
                 self._error_rng = unc.error_stream(seed)
-            e = unc.draw_errors(self._task.uncertainty, self._error_rng)
-            if options and options.get("errors") is not None:
-                e = unc.errors_from_option(options["errors"])  # drawn anyway: streams stay aligned
+            e = unc.episode_errors(self._task.uncertainty, self._error_rng,
+                                   (options or {}).get("errors"))
             y0 = b.true_start(y0, e)[0]
             b.set_errors(0, e)
         b.set_state(0, y0)
@@ -451,16 +450,17 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
                 opt[k] = arr[i] if arr is not None and arr.ndim == 2 else v
         return self._task.initial_state(self._rngs[i], opt)
 
-    def _draw_errors(self, i: int) -> unc.EpisodeErrors:
+    def _draw_errors(self, i: int, options: dict | None = None) -> unc.EpisodeErrors:
         if self._error_rngs[i] is None:
             self._error_rngs[i] = unc.error_stream(None)
-        return unc.draw_errors(self._task.uncertainty, self._error_rngs[i])
+        return unc.episode_errors(self._task.uncertainty, self._error_rngs[i],
+                                  (options or {}).get("errors"), row=i)
 
     def _reset_one(self, i: int, options: dict | None) -> None:
         y0 = self._initial_state(i, options)
         b = self._batch
         if b.uncertain:
-            e = self._draw_errors(i)
+            e = self._draw_errors(i, options)
             y0 = b.true_start(y0, e)[0]
             b.set_errors(i, e)
         b.set_state(i, y0)
@@ -496,9 +496,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
                 try:
                     y0[i] = self._initial_state(i, options)
                     if b.uncertain:
-                        errors.append(self._draw_errors(i))
-                        if options and options.get("errors") is not None:
-                            errors[-1] = unc.errors_from_option(options["errors"], row=i)
+                        errors.append(self._draw_errors(i, options))
                         y0[i] = b.true_start(y0[i], errors[-1])[0]
                 except ValueError as exc:
                     raise ValueError(f"reset of sub-env {i} (row {i} of the options): {exc}"
