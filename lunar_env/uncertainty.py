@@ -16,10 +16,12 @@ flight computer is not told any of them.
 **Navigation**: the observation encodes the *navigated* state, the truth plus a bias per
 episode and white noise per decision, in position (m) and velocity (m/s) along up, downrange,
 crossrange. Before a landing radar acquires the ground, navigation propagates the orbit
-determination and is worst at altitude; ``radar_altitude_m`` is where the radar starts to
-help: below it the position errors (bias and noise) shrink linearly with altitude to
-``near_ground_position_fraction`` of themselves at the surface, the velocity errors to
-``near_ground_velocity_fraction``. The flight computer's mass estimate
+determination and is worst at altitude. ``radar_altitude_m`` is where the terminal sensors
+(a landing radar or Doppler lidar, with terrain-relative navigation) lock: there the errors
+(bias and noise) drop to ``radar_lock_fraction`` of themselves and below it they shrink in
+proportion to the altitude (a range sensor's error is a fraction of its range) down to the
+floors ``near_ground_position_fraction`` (position) and ``near_ground_velocity_fraction``
+(velocity) of themselves. The flight computer's mass estimate
 is the planned initial mass minus the propellant it believes burnt, so it misses by the wet
 mass error (a constant offset).
 
@@ -116,11 +118,14 @@ class UncertaintyModel:
     nav_position_noise_m, nav_velocity_noise_m_s : (float, float, float)
         1σ navigation white noise per decision, at altitude (m, m/s).
     radar_altitude_m : float
-        Altitude (m) below which navigation errors shrink linearly to their near-ground
-        fractions at the surface (finite, > 0; no radar: fractions of 1).
+        Altitude (m) at which the terminal sensors lock (finite, > 0; no radar: fractions of
+        1).
+    radar_lock_fraction : float
+        Multiplier of the navigation errors at lock, in [0, 1]; below the lock altitude it
+        falls in proportion to the altitude (:func:`radar_weight`).
     near_ground_position_fraction, near_ground_velocity_fraction : float
-        Navigation position and velocity errors at the surface as fractions of those at
-        altitude, in [0, 1].
+        Floors of the position and velocity multipliers (the sensors' accuracy near the
+        ground, as fractions of the errors at altitude), in [0, 1].
     """
 
     name: str = "custom"
@@ -135,6 +140,7 @@ class UncertaintyModel:
     nav_position_noise_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     nav_velocity_noise_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
     radar_altitude_m: float = 1.0e9
+    radar_lock_fraction: float = 1.0
     near_ground_position_fraction: float = 1.0
     near_ground_velocity_fraction: float = 1.0
 
@@ -159,7 +165,8 @@ class UncertaintyModel:
             raise ValueError(f"UncertaintyModel.radar_altitude_m = {self.radar_altitude_m!r} is "
                              "not allowed; it must be finite and > 0 (m)")
         object.__setattr__(self, "radar_altitude_m", r)
-        for name in ("near_ground_position_fraction", "near_ground_velocity_fraction"):
+        for name in ("radar_lock_fraction", "near_ground_position_fraction",
+                     "near_ground_velocity_fraction"):
             f = require_number(f"UncertaintyModel.{name}", getattr(self, name))
             if not 0.0 <= f <= 1.0:
                 raise ValueError(f"UncertaintyModel.{name} = {getattr(self, name)!r} is not "
@@ -197,8 +204,8 @@ class UncertaintyModel:
         return dataclasses.replace(self, **changes)
 
     def scaled(self, k: float) -> UncertaintyModel:
-        """Every σ multiplied by ``k`` >= 0 (the radar altitude and the near-ground fraction
-        are kept); named ``"<name>×k"``. ``scaled(0)`` has no error at all."""
+        """Every σ multiplied by ``k`` >= 0 (the radar altitude and the radar's fractions are
+        kept); named ``"<name>×k"``. ``scaled(0)`` has no error at all."""
         k = require_number("scale", k)
         if not (math.isfinite(k) and k >= 0.0):
             raise ValueError(f"scale = {k!r} is not allowed; it must be finite and >= 0")
@@ -249,14 +256,20 @@ _STANDARD = UncertaintyModel(
     nav_velocity_bias_m_s=(0.5, 0.5, 0.5),
     nav_position_noise_m=(10.0, 10.0, 10.0),
     nav_velocity_noise_m_s=(0.1, 0.1, 0.1),
-    # A landing radar acquires the surface at a few kilometres; at touchdown it measures height
-    # to about a metre and velocity to about 0.1 m/s: position errors shrink to 1 % at the
-    # surface (100 m -> 1 m up, 2 m across), velocity errors to 20 % (0.5 -> 0.1 m/s).
-    # Measured with a first version that shrank both to 10 % (10 m of altitude error at
-    # touchdown): every constant-thrust law failed about 3 landings in 4, because the engine
-    # cuts off at its believed zero altitude and a 10 m fall ends at 5.7 m/s, over the 5 m/s
-    # limit; that is a radar no lander flies with (docs/notes/issue-29.md).
+    # The terminal sensors (a landing radar or Doppler lidar, with terrain-relative
+    # navigation) lock at 3 km and measure range to a fraction of itself: the errors drop at
+    # lock to 5 % of the pre-radar ones (100 m -> 5 m up at 3 km, 0.17 % of the range; the
+    # Doppler lidar flown on IM-1 matched its reconstructed trajectory to ~5 m and 0.5 m/s,
+    # NASA NTRS 20250010290) and then shrink with the altitude, to floors of 1 % in position
+    # (1 m up, 2 m across) and 20 % in velocity (0.5 -> 0.1 m/s, the Doppler's resolution).
+    # Two earlier versions were measured and replaced (docs/notes/issue-29.md): errors
+    # shrinking to 10 % at the surface (10 m of altitude error at touchdown: a constant-thrust
+    # engine that cuts off at its believed zero altitude falls 10 m and lands at 5.7 m/s,
+    # over the 5 m/s limit), and a linear blend from 100 % at lock to 1 % at the surface,
+    # which still left ~70 m of altitude error at the pinpoint env's 2 km gate, where a 5 m/s
+    # gate speed needs a few metres: every law failed every case on it.
     radar_altitude_m=3000.0,
+    radar_lock_fraction=0.05,
     near_ground_position_fraction=0.01,
     near_ground_velocity_fraction=0.2,
 )
@@ -463,22 +476,24 @@ def navigation_noise(keys: np.ndarray, counters: np.ndarray, n_components: int =
 
 
 @register_jitable
-def _shrink(altitude_m, radar_altitude_m, fraction):
-    """The radar's multiplier of a navigation error at ``altitude_m`` (scalars or arrays): 1
-    above the radar altitude, falling linearly to ``fraction`` at the surface."""
-    h = np.minimum(np.maximum(altitude_m / radar_altitude_m, 0.0), 1.0)
-    return fraction + (1.0 - fraction) * h
+def _shrink(altitude_m, radar_altitude_m, lock_fraction, floor):
+    """The terminal sensors' multiplier of a navigation error at ``altitude_m`` (scalars or
+    arrays): 1 above the lock altitude, ``lock_fraction`` × altitude / lock altitude below it,
+    never under ``floor``."""
+    h = np.maximum(altitude_m / radar_altitude_m, 0.0)
+    above = h > 1.0
+    return above * 1.0 + (1.0 - above) * np.maximum(lock_fraction * h, floor)
 
 
 @numba.njit(cache=True)
 def _navigation_errors_kernel(keys, counters, altitude_m, bias_p, bias_v, sig_p, sig_v,
-                              radar_altitude_m, near_p, near_v, n_axes, dpos, dvel
+                              radar_altitude_m, lock, near_p, near_v, n_axes, dpos, dvel
                               ):  # pragma: no cover  (compiled)
     z = np.empty((keys.shape[0], 2 * n_axes))
     _noise_kernel(keys, counters, z)
     for i in range(keys.shape[0]):
-        wp = _shrink(altitude_m[i], radar_altitude_m, near_p)
-        wv = _shrink(altitude_m[i], radar_altitude_m, near_v)
+        wp = _shrink(altitude_m[i], radar_altitude_m, lock, near_p)
+        wv = _shrink(altitude_m[i], radar_altitude_m, lock, near_v)
         for j in range(3):
             if j < n_axes:
                 dpos[i, j] = wp * (bias_p[i, j] + z[i, 2 * j] * sig_p[j])
@@ -504,7 +519,7 @@ def navigation_errors(model: UncertaintyModel, errors: EpisodeErrors, counters: 
                               errors.nav_position_bias_m, errors.nav_velocity_bias_m_s,
                               np.asarray(model.nav_position_noise_m),
                               np.asarray(model.nav_velocity_noise_m_s), model.radar_altitude_m,
-                              model.near_ground_position_fraction,
+                              model.radar_lock_fraction, model.near_ground_position_fraction,
                               model.near_ground_velocity_fraction, int(n_axes), dpos, dvel)
     return dpos, dvel
 
@@ -512,10 +527,13 @@ def navigation_errors(model: UncertaintyModel, errors: EpisodeErrors, counters: 
 def radar_weight(model: UncertaintyModel, altitude_m: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """Navigation error multipliers (position, velocity) at ``altitude_m`` (n,) each: 1 above
-    the radar altitude, falling linearly to the near-ground fractions at the surface."""
+    the radar's lock altitude; below it ``radar_lock_fraction`` × altitude / lock altitude,
+    never under the near-ground fractions."""
     h = np.asarray(altitude_m, dtype=np.float64)
-    return (_shrink(h, model.radar_altitude_m, model.near_ground_position_fraction),
-            _shrink(h, model.radar_altitude_m, model.near_ground_velocity_fraction))
+    return (_shrink(h, model.radar_altitude_m, model.radar_lock_fraction,
+                    model.near_ground_position_fraction),
+            _shrink(h, model.radar_altitude_m, model.radar_lock_fraction,
+                    model.near_ground_velocity_fraction))
 
 
 def episode_errors(model: UncertaintyModel, rng: np.random.Generator, pinned=None,

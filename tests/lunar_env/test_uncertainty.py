@@ -3,6 +3,7 @@ plant error against physics."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import gymnasium as gym
@@ -27,6 +28,7 @@ IDS = ("LunarSoftLanding-v0", "LunarPinpointLanding-v2")
     ({"nav_velocity_noise_m_s": (1.0, 2.0)}, "nav_velocity_noise_m_s"),
     ({"near_ground_velocity_fraction": 1.5}, "near_ground_velocity_fraction"),
     ({"radar_altitude_m": 0.0}, "radar_altitude_m"),
+    ({"radar_lock_fraction": -0.1}, "radar_lock_fraction"),
     ({"thrust_scale": 0.3}, "thrust_scale"),
     ({"misalignment_rad": "0.1"}, "misalignment_rad"),
 ])
@@ -140,6 +142,32 @@ def test_every_scale_sees_the_same_standard_normals():
     np.testing.assert_allclose(b.thrust_scale - 1, 2 * (a.thrust_scale - 1), rtol=1e-12)
     np.testing.assert_allclose(b.nav_position_bias_m, 2 * a.nav_position_bias_m, rtol=1e-12)
     np.testing.assert_array_equal(a.noise_key, b.noise_key)
+
+
+def test_terminal_sensors_cut_the_errors_at_lock_then_in_proportion_to_the_altitude():
+    # Bug fixed (issue 29): a linear blend from 100 % at lock left ~70 m of altitude error at
+    # the pinpoint env's 2 km gate. The multiplier is 1 above the lock altitude, the lock
+    # fraction there, proportional to the altitude below, and never under its floor.
+    m = get_uncertainty("standard")
+    h = np.array([15000.0, 3000.0 + 1e-9, 3000.0, 2000.0, 1500.0, 600.0, 10.0, 0.0, -3.0])
+    wp, wv = unc.radar_weight(m, h)
+    lock, hr = m.radar_lock_fraction, m.radar_altitude_m
+    expect_p = [1.0, 1.0, lock, lock * 2000 / hr, lock * 1500 / hr, lock * 600 / hr] + [
+        m.near_ground_position_fraction] * 3
+    np.testing.assert_allclose(wp, expect_p, rtol=1e-12)
+    np.testing.assert_allclose(wv[2:], m.near_ground_velocity_fraction)  # 0.2 > 5 % × h/h_r
+    # ~3 m of altitude error (1σ bias) at the 2 km gate, 1 m at the surface
+    assert 3.0 < m.nav_position_bias_m[0] * wp[3] < 3.5
+    # the compiled kernel applies the same weights
+    errors = unc.draw_errors(m, unc.error_stream(5))
+    many = unc.EpisodeErrors(**{f.name: np.repeat(getattr(errors, f.name), len(h), axis=0)
+                                for f in dataclasses.fields(errors)})
+    counters = np.zeros(len(h), dtype=np.int64)
+    dpos, dvel = unc.navigation_errors(m, many, counters, h)
+    z = unc.navigation_noise(many.noise_key, counters)
+    np.testing.assert_allclose(
+        dpos[:, 0], wp * (many.nav_position_bias_m[:, 0] + z[:, 0] * m.nav_position_noise_m[0]),
+        rtol=1e-12)
 
 
 def test_navigation_noise_is_a_pure_function_of_key_and_counter():
