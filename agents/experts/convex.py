@@ -62,6 +62,9 @@ class ConvexReplanningLaw(GuidanceLaw):
         SCvx iterations of each lander's first plan (≥ 1). Default 30.
     engine : {"constant", "throttled"}
         The papers' full-thrust engine, or the throttled one (needs the env's throttle channel).
+    throttle_max : float
+        Largest throttle the throttled engine plans with, in (0, 1] (default 1): below 1, a
+        thrust margin that re-planning spends when the engine is weaker than the model.
     min_tgo_s : float
         No re-plan when the planned time to go is below this (s, ≥ 0). Default 3.
 
@@ -85,7 +88,7 @@ class ConvexReplanningLaw(GuidanceLaw):
     name = "convex re-planning"
 
     def __init__(self, scenario, *, every_s: float = 10.0, n_nodes: int = 30, iters: int = 2,
-                 first_iter: int = 30, engine: str = "constant",
+                 first_iter: int = 30, engine: str = "constant", throttle_max: float = 1.0,
                  min_tgo_s: float = 3.0) -> None:
         from optimizers.transcription.convex import SuccessiveConvexification
 
@@ -106,7 +109,8 @@ class ConvexReplanningLaw(GuidanceLaw):
         self.first_iter = int(first_iter)
         self.min_tgo_s = float(min_tgo_s)
         self.engine = engine
-        self.solver = SuccessiveConvexification(n_nodes, engine=engine, max_iter=first_iter)
+        self.solver = SuccessiveConvexification(n_nodes, engine=engine, max_iter=first_iter,
+                                                throttle_max=throttle_max)
         if isinstance(scenario, PlanarScenario):
             from optimizers.problems.planar_ocp import PlanarOCP
 
@@ -210,10 +214,12 @@ class ConvexReplanningLaw(GuidanceLaw):
 
 
 def convex_from_spec(spec, context) -> GuidanceLaw:
-    """``convex[:every=S,nodes=K,iters=I,first_iter=J,engine=constant|throttled,min_tgo=S]``:
-    :class:`ConvexReplanningLaw` on the context's nominal scenario (defaults 10 s, 30 nodes,
-    2 iterations per re-plan, 30 for the first plan, constant engine, 3 s)."""
-    spec.require_known_options(("every", "nodes", "iters", "first_iter", "engine", "min_tgo"))
+    """``convex[:every=S,nodes=K,iters=I,first_iter=J,engine=constant|throttled,tmax=G,
+    min_tgo=S]``: :class:`ConvexReplanningLaw` on the context's nominal scenario (defaults 10 s,
+    30 nodes, 2 iterations per re-plan, 30 for the first plan, constant engine, throttle_max 1,
+    3 s)."""
+    spec.require_known_options(("every", "nodes", "iters", "first_iter", "engine", "tmax",
+                                "min_tgo"))
     if spec.argument is not None:
         raise ValueError(f"law {spec.text!r} takes no argument (options as convex:every=2,...)")
     law = ConvexReplanningLaw(
@@ -223,6 +229,7 @@ def convex_from_spec(spec, context) -> GuidanceLaw:
         iters=spec.option("iters", int, 2),
         first_iter=spec.option("first_iter", int, 30),
         engine=spec.option("engine", str, "constant"),
+        throttle_max=spec.option("tmax", float, 1.0),
         min_tgo_s=spec.option("min_tgo", float, 3.0))
     law.name = spec.label() if spec.options else "convex"
     return law

@@ -209,7 +209,12 @@ class SuccessiveConvexification:
     engine : {"constant", "throttled"}
         ``"constant"`` (default): the papers' engine, always at full thrust (Γ = 1, only the
         direction steered; the relaxed set is ‖w‖ ≤ 1 and minimum fuel is minimum time);
-        ``"throttled"``: Γ ∈ [0, 1] (the envs' throttle channel, [003]'s engine).
+        ``"throttled"``: Γ ∈ [0, Γ_max] (the envs' throttle channel, [003]'s engine).
+    throttle_max : float
+        Γ_max of the throttled engine, in (0, 1]. Default 1. Below 1 the plan keeps a thrust
+        margin (e.g. 0.94: three 1σ of a 2 % thrust error) for a re-planning law to spend
+        when the engine is weaker than the model; the fuel it costs is the price of that
+        margin (docs/notes/issue-29.md). Only with ``engine="throttled"``.
     solver : str
         cvxpy solver name. Default ``"CLARABEL"``.
     solver_options : dict, optional
@@ -232,6 +237,7 @@ class SuccessiveConvexification:
                  trust_region_max: float = 2.0, virtual_control_weight: float = 1e3,
                  max_iter: int = 40, step_tol: float = 1e-7, cost_tol: float = 1e-8,
                  defect_tol: float = 1e-9, engine: str = "constant",
+                 throttle_max: float = 1.0,
                  solver: str = "CLARABEL", solver_options: dict | None = None) -> None:
         def _int(name, v, lo):
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < lo:
@@ -263,6 +269,13 @@ class SuccessiveConvexification:
             raise ValueError(f"engine = {engine!r} is not allowed; use 'constant' (the papers' "
                              "full-thrust engine, Γ = 1) or 'throttled' (Γ ∈ [0, 1])")
         self.engine = engine
+        self.throttle_max = _pos("throttle_max", throttle_max)
+        if self.throttle_max > 1.0:
+            raise ValueError(f"throttle_max = {throttle_max!r} is not allowed; it must be in "
+                             "(0, 1] (a fraction of the engine's maximum thrust)")
+        if engine == "constant" and self.throttle_max != 1.0:
+            raise ValueError(f"throttle_max = {throttle_max!r} needs engine='throttled'; the "
+                             "constant engine always burns at full thrust")
         if not isinstance(solver, str) or not solver:
             raise ValueError(f"solver = {solver!r} must be a cvxpy solver name, e.g. 'CLARABEL'")
         self.solver = solver.upper()
@@ -337,7 +350,8 @@ class SuccessiveConvexification:
             cons.append(X[i, 1:] == rhs)
         d = model.d
         P["gmin"] = cp.Parameter(nonneg=True, name="throttle_min")
-        cons += [cp.norm(U[:d, :], 2, axis=0) <= U[d, :], U[d, :] <= 1.0,
+        P["gmax"] = cp.Parameter(nonneg=True, name="throttle_max")
+        cons += [cp.norm(U[:d, :], 2, axis=0) <= U[d, :], U[d, :] <= P["gmax"],
                  U[d, :] >= P["gmin"]]
         if len(model.halfspaces):
             cons.append(model.halfspaces @ U <= 0.0)
@@ -490,6 +504,9 @@ class SuccessiveConvexification:
         P, prob = b["P"], b["prob"]
         P["x0"].value = x0
         P["gmin"].value = 1.0 if self.engine == "constant" else 0.0
+        P["gmax"].value = self.throttle_max
+        if self.engine == "throttled":
+            Ur[model.d] = np.minimum(Ur[model.d], self.throttle_max)
         if self.engine == "constant":
             Ur[model.d] = 1.0
         max_iter = self.max_iter if max_iter is None else int(max_iter)
