@@ -99,6 +99,19 @@ class FlightComputer:
         """SI quantities of observations (as the env's ``observation_quantities``)."""
         return self.decode(obs)
 
+    def at_full_thrust(self, angle_actions: np.ndarray) -> np.ndarray:
+        """Actions (N, n_act) of a constant-thrust law's angle channels (N, n_angles): as they
+        are on the papers' engine; on an env with a throttle channel (one more channel, the
+        last) with it at full thrust (+1), so that the same law flies both engines."""
+        a = np.asarray(angle_actions, dtype=np.float32)
+        n_act = int(self.action_space.shape[-1])
+        if n_act == a.shape[-1]:
+            return a
+        if n_act != a.shape[-1] + 1:
+            raise ValueError(f"angle actions have {a.shape[-1]} channels; the env's action space "
+                             f"has {n_act} (angles, or angles and a throttle)")
+        return np.concatenate([a, np.ones(a.shape[:-1] + (1,), dtype=np.float32)], axis=-1)
+
     @classmethod
     def of(cls, env, env_id: str) -> FlightComputer:
         """The flight computer of a lander env (single or native vector), from its public API."""

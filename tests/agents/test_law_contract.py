@@ -143,3 +143,30 @@ def _env():
     import lunar_env  # noqa: F401
 
     return gym.make(ENV_ID).unwrapped
+
+
+@pytest.mark.parametrize("env_id, n_angles", [("LunarSoftLanding-v0", 1),
+                                              ("LunarPinpointLanding-v2", 2)])
+def test_constant_thrust_laws_fly_the_throttled_engine_at_full_thrust(env_id, n_angles):
+    # Bug fixed (issue 29): the open-loop replays gave angle-only actions to an env with a
+    # throttle channel, and a campaign on it stopped with "action has shape (10, 2)".
+    import gymnasium as gym
+
+    from agents.experts.pinpoint.optimum import PinpointOpenLoopLaw
+    from agents.experts.planar.expert import PlanarOpenLoopLaw
+
+    env = gym.make(env_id, throttle_channel=True)
+    computer = FlightComputer.of(env, env_id)
+    a = computer.at_full_thrust(np.zeros((3, n_angles)))
+    assert a.shape == (3, n_angles + 1) and np.all(a[:, -1] == 1.0) and a.dtype == np.float32
+    plain = FlightComputer.of(gym.make(env_id), env_id)
+    np.testing.assert_array_equal(plain.at_full_thrust(np.zeros((3, n_angles))), 0.0)
+    with pytest.raises(ValueError, match="channels"):
+        computer.at_full_thrust(np.zeros((3, n_angles + 2)))
+    failed = dataclasses.make_dataclass("FailedSolve", [("success", bool)])(False)
+    law = (PlanarOpenLoopLaw if n_angles == 1 else PinpointOpenLoopLaw)([failed] * 3)
+    law.reset(computer, np.arange(3))
+    nav = Navigation(obs=np.zeros((3,) + env.observation_space.shape), state_nd=None,
+                     t_s=np.zeros(3), active=np.ones(3, dtype=bool))
+    act = law.act(nav)
+    assert act.shape == (3, n_angles + 1) and env.action_space.contains(act[0])

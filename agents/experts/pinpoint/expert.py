@@ -79,7 +79,7 @@ class PinpointPontryaginExpert(GuidanceLaw):
         return ang, actions, is_label
 
     def act(self, nav: Navigation) -> np.ndarray:
-        return self.labels(nav.state_nd, nav.t_s, nav.active)[1]
+        return self.computer.at_full_thrust(self.labels(nav.state_nd, nav.t_s, nav.active)[1])
 
     @property
     def last_status(self) -> list[str]:

@@ -166,5 +166,5 @@ class PinpointOpenLoopLaw(GuidanceLaw):
             opt = self.optima[cid]
             if opt.success:
                 ang[k] = opt.mean_angles(float(nav.t_s[k]) - self.t_offset_s[cid], dt)
-        return action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
-                                  sc.beta_bounds_rad).astype(np.float32)
+        return self.computer.at_full_thrust(action_from_angles(
+            ang[:, 0], ang[:, 1], sc.alpha_bounds_rad, sc.beta_bounds_rad))

@@ -238,7 +238,7 @@ class PlanarOpenLoopLaw(GuidanceLaw):
             sol = self.solutions[cid]
             if sol.success:
                 phi[k] = sol.thrust_angle_at(float(t_mid[k]))
-        return _actions(phi)
+        return self.computer.at_full_thrust(_actions(phi))
 
 
 class PlanarReplanningLaw(GuidanceLaw):
@@ -271,4 +271,4 @@ class PlanarReplanningLaw(GuidanceLaw):
         phi = np.zeros(len(si))
         for k in np.flatnonzero(nav.active):
             phi[k] = float(self.experts[k](si[k], t_s=float(nav.t_s[k])))
-        return _actions(phi)
+        return self.computer.at_full_thrust(_actions(phi))
