@@ -218,14 +218,13 @@ class LanderBatch:
         """The navigated states (n, n_state) of every lander now: the truth with each lander's
         navigation bias and this decision's noise (along up, downrange, crossrange; scaled by
         :func:`~lunar_env.uncertainty.radar_weight` at the true altitude), and the mass the
-        flight computer believes (the planned initial mass minus the propellant burnt). The
-        truth itself without an uncertainty model."""
+        flight computer believes (the planned initial mass minus the propellant burnt)
+        (:meth:`~lunar_env.envs.task.LandingTask.navigation_states`). The truth itself without
+        an uncertainty model."""
         if not self.uncertain:
             return self.y
-        task, e = self.task, self.errors
-        dpos, dvel = unc.navigation_errors(self.uncertainty, e, self.decision,
-                                           task.altitude_m(self.y), task.n_axes)
-        return task.offset_states(self.y, dpos, dvel, self._mass_belief)
+        return self.task.navigation_states(self.y, self.errors, self.decision,
+                                           self._mass_belief)
 
     def observations(self, t_s: np.ndarray | None = None) -> np.ndarray:
         """Observations (n, n_obs) float32 of every lander now (of the navigated states, see
