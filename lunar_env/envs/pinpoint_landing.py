@@ -11,9 +11,11 @@ import math
 
 import numba
 import numpy as np
+from numba.extending import register_jitable
 
 from .. import dynamics as dyn
 from .. import integrators as integ
+from .. import uncertainty as unc
 from ..scenarios import PinpointScenario, get_scenario
 from ..uncertainty import UncertaintyModel
 from ..validation import require_finite_positive
@@ -69,26 +71,60 @@ def _controls_kernel(a, lo_a, span_a, lo_b, span_b, throttle_channel, u):  # pra
             u[i, 2] = 1.0
 
 
+# inlined (numba IR) into its compiled callers: see lunar_env.uncertainty._shrink
+@register_jitable(inline="always")
+def _altitude_row(y, i, radius_nd, length_ref_m):
+    """Altitude (m) above the sphere of radius ``radius_nd`` of state ``y[i]`` (the one formula
+    of :meth:`PinpointTask.altitude_m`, also used by the navigation kernel)."""
+    r = np.sqrt(y[i, 0] * y[i, 0] + y[i, 1] * y[i, 1] + y[i, 2] * y[i, 2])
+    return (r - radius_nd) * length_ref_m
+
+
 @numba.njit(cache=True)
 def _altitude_kernel(y, radius_nd, length_ref_m, out):  # pragma: no cover  (compiled)
     """Altitude (m) above the sphere of radius ``radius_nd`` of states y (B, 7) into ``out``,
     compiled for the same reason as the observation."""
     for i in range(y.shape[0]):
-        r = np.sqrt(y[i, 0] * y[i, 0] + y[i, 1] * y[i, 1] + y[i, 2] * y[i, 2])
-        out[i] = (r - radius_nd) * length_ref_m
+        out[i] = _altitude_row(y, i, radius_nd, length_ref_m)
 
 
-@numba.njit(cache=True)
+# Inlined (numba IR) into its compiled callers, which run with NumPy's error model: no divisor
+# here is zero (positive units), and without the zero test the loop has no branch (see
+# lunar_env.uncertainty._FAST and _shrink); the results are the same.
+@register_jitable(inline="always")
+def _offset_row(y, i, dp_up, dp_down, dp_cross, dv_up, dv_down, dv_cross, dmass, n_hat, L, V,
+                M, out):
+    """:meth:`PinpointTask.offset_states` of lander i (errors in m, m/s, kg) into ``out[i]``:
+    the one formula of the offset, for the NumPy-facing kernel and the navigation kernel."""
+    f = dyn.orbital_frame(y[i, 0], y[i, 1], y[i, 2], n_hat[0], n_hat[1], n_hat[2])
+    for j in range(3):
+        out[i, j] = y[i, j] + (dp_up * f[j] + dp_down * f[3 + j] + dp_cross * f[6 + j]) / L
+        out[i, 3 + j] = y[i, 3 + j] + (dv_up * f[j] + dv_down * f[3 + j]
+                                       + dv_cross * f[6 + j]) / V
+    out[i, 6] = y[i, 6] + dmass / M
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _offset_kernel(y, dpos, dvel, dmass, n_hat, L, V, M, out):  # pragma: no cover  (compiled)
-    """:meth:`PinpointTask.offset_states` in one loop (the navigated state of every decision)."""
+    """:meth:`PinpointTask.offset_states` in one loop (entry errors, and the reference of the
+    navigated state)."""
     for i in range(y.shape[0]):
-        f = dyn.orbital_frame(y[i, 0], y[i, 1], y[i, 2], n_hat[0], n_hat[1], n_hat[2])
-        for j in range(3):
-            out[i, j] = y[i, j] + (dpos[i, 0] * f[j] + dpos[i, 1] * f[3 + j]
-                                   + dpos[i, 2] * f[6 + j]) / L
-            out[i, 3 + j] = y[i, 3 + j] + (dvel[i, 0] * f[j] + dvel[i, 1] * f[3 + j]
-                                           + dvel[i, 2] * f[6 + j]) / V
-        out[i, 6] = y[i, 6] + dmass[i] / M
+        _offset_row(y, i, dpos[i, 0], dpos[i, 1], dpos[i, 2], dvel[i, 0], dvel[i, 1],
+                    dvel[i, 2], dmass[i], n_hat, L, V, M, out)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _navigation_kernel(y, keys, counters, bias_p, bias_v, c, dmass, radius_nd, n_hat, L, V, M,
+                       out):  # pragma: no cover  (compiled)
+    """:meth:`PinpointTask.navigation_states`: the decision's noise for the whole batch, then
+    per lander the true altitude, its navigation errors and the offset state, in one pass (no
+    (B, 3) error arrays, no second pass over the states)."""
+    z = np.empty((6, y.shape[0]))  # position and velocity noise along the three axes
+    unc._standard_normals(keys, counters, z)
+    for i in range(y.shape[0]):
+        e = unc._navigation_error_row(z, i, _altitude_row(y, i, radius_nd, L), bias_p, bias_v,
+                                      c, 3)
+        _offset_row(y, i, e[0], e[1], e[2], e[3], e[4], e[5], dmass[i], n_hat, L, V, M, out)
 
 
 def angles_from_action(action, alpha_bounds_rad: tuple[float, float] = _PENG.alpha_bounds_rad,
@@ -263,6 +299,20 @@ class PinpointTask(LandingTask):
                        np.ascontiguousarray(dvel_m_s, dtype=np.float64),
                        np.ascontiguousarray(dmass_kg, dtype=np.float64), self.plane_normal,
                        self.length_ref_m, self.velocity_ref_m_s, self.mass_ref_kg, out)
+        return out
+
+    def navigation_states(self, y: np.ndarray, errors: unc.EpisodeErrors,
+                          counters: np.ndarray, mass_belief_kg: np.ndarray) -> np.ndarray:
+        """As :meth:`LandingTask.navigation_states` (same arithmetic, bit for bit), in one
+        compiled call."""
+        out = np.empty((len(y), 7))
+        _navigation_kernel(np.ascontiguousarray(y, dtype=np.float64), errors.noise_key,
+                           np.ascontiguousarray(counters, dtype=np.int64),
+                           errors.nav_position_bias_m, errors.nav_velocity_bias_m_s,
+                           self._nav_consts, np.ascontiguousarray(mass_belief_kg,
+                                                                  dtype=np.float64),
+                           self.surface_radius_nd, self.plane_normal, self.length_ref_m,
+                           self.velocity_ref_m_s, self.mass_ref_kg, out)
         return out
 
     def target_offsets_m(self, y: np.ndarray) -> np.ndarray:

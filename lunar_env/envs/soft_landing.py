@@ -12,8 +12,10 @@ import math
 
 import numba
 import numpy as np
+from numba.extending import register_jitable
 
 from .. import integrators as integ
+from .. import uncertainty as unc
 from ..scenarios import PlanarScenario, get_scenario
 from ..uncertainty import UncertaintyModel
 from .base import LanderEnv, LanderVectorEnv
@@ -57,24 +59,58 @@ def _observation_kernel(y, t_s, c, lo, hi, out):  # pragma: no cover  (compiled)
             out[i, j] = min(max(raw[j], lo[j]), hi[j])
 
 
+# inlined (numba IR) into its compiled callers: see lunar_env.uncertainty._shrink
+@register_jitable(inline="always")
+def _altitude_row(y, i, r_stop_nd, length_ref_m):
+    """Altitude (m) above the surface radius of state ``y[i]`` (the one formula of
+    :meth:`PlanarTask.altitude_m`, also used by the navigation kernel)."""
+    return (y[i, 0] - r_stop_nd) * length_ref_m
+
+
 @numba.njit(cache=True)
 def _altitude_kernel(y, r_stop_nd, length_ref_m, out):  # pragma: no cover  (compiled)
     """Altitude (m) above the surface radius of states y (B, 5) into ``out``."""
     for i in range(y.shape[0]):
-        out[i] = (y[i, 0] - r_stop_nd) * length_ref_m
+        out[i] = _altitude_row(y, i, r_stop_nd, length_ref_m)
 
 
-@numba.njit(cache=True)
+# Inlined (numba IR) into its compiled callers, which run with NumPy's error model: no divisor
+# here is zero (positive units and radii), and without the zero test the loop has no branch (see
+# lunar_env.uncertainty._FAST and _shrink); the results are the same.
+@register_jitable(inline="always")
+def _offset_row(y, i, dp_up, dp_down, dv_up, dv_down, dmass, L, V, M, out):
+    """:meth:`PlanarTask.offset_states` of lander i (errors in m, m/s, kg) into ``out[i]``: the
+    one formula of the offset, for the NumPy-facing kernel and the navigation kernel."""
+    r = y[i, 0] + dp_up / L
+    v_t = y[i, 0] * y[i, 3] + dv_down / V
+    out[i, 0] = r
+    out[i, 1] = y[i, 1] + dv_up / V
+    out[i, 2] = y[i, 2] + dp_down / L / y[i, 0]
+    out[i, 3] = v_t / r
+    out[i, 4] = y[i, 4] + dmass / M
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _offset_kernel(y, dpos, dvel, dmass, L, V, M, out):  # pragma: no cover  (compiled)
-    """:meth:`PlanarTask.offset_states` in one loop (the navigated state of every decision)."""
+    """:meth:`PlanarTask.offset_states` in one loop (entry errors, and the reference of the
+    navigated state)."""
     for i in range(y.shape[0]):
-        r = y[i, 0] + dpos[i, 0] / L
-        v_t = y[i, 0] * y[i, 3] + dvel[i, 1] / V
-        out[i, 0] = r
-        out[i, 1] = y[i, 1] + dvel[i, 0] / V
-        out[i, 2] = y[i, 2] + dpos[i, 1] / L / y[i, 0]
-        out[i, 3] = v_t / r
-        out[i, 4] = y[i, 4] + dmass[i] / M
+        _offset_row(y, i, dpos[i, 0], dpos[i, 1], dvel[i, 0], dvel[i, 1], dmass[i], L, V, M,
+                    out)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _navigation_kernel(y, keys, counters, bias_p, bias_v, c, dmass, r_stop_nd, L, V, M, out
+                       ):  # pragma: no cover  (compiled)
+    """:meth:`PlanarTask.navigation_states`: the decision's noise for the whole batch, then
+    per lander the true altitude, its navigation errors and the offset state, in one pass (no
+    (B, 3) error arrays, no second pass over the states)."""
+    z = np.empty((4, y.shape[0]))  # planar: position and velocity noise, up and downrange
+    unc._standard_normals(keys, counters, z)
+    for i in range(y.shape[0]):
+        e = unc._navigation_error_row(z, i, _altitude_row(y, i, r_stop_nd, L), bias_p, bias_v,
+                                      c, 2)
+        _offset_row(y, i, e[0], e[1], e[3], e[4], dmass[i], L, V, M, out)
 
 
 def thrust_angle_from_action(action) -> np.ndarray:
@@ -201,6 +237,20 @@ class PlanarTask(LandingTask):
                        np.ascontiguousarray(dvel_m_s, dtype=np.float64),
                        np.ascontiguousarray(dmass_kg, dtype=np.float64), self.length_ref_m,
                        self.velocity_ref_m_s, self.mass_ref_kg, out)
+        return out
+
+    def navigation_states(self, y: np.ndarray, errors: unc.EpisodeErrors,
+                          counters: np.ndarray, mass_belief_kg: np.ndarray) -> np.ndarray:
+        """As :meth:`LandingTask.navigation_states` (same arithmetic, bit for bit), in one
+        compiled call."""
+        out = np.empty((len(y), 5))
+        _navigation_kernel(np.ascontiguousarray(y, dtype=np.float64), errors.noise_key,
+                           np.ascontiguousarray(counters, dtype=np.int64),
+                           errors.nav_position_bias_m, errors.nav_velocity_bias_m_s,
+                           self._nav_consts, np.ascontiguousarray(mass_belief_kg,
+                                                                  dtype=np.float64),
+                           self.r_stop_nd, self.length_ref_m, self.velocity_ref_m_s,
+                           self.mass_ref_kg, out)
         return out
 
     def radius_nd(self, y: np.ndarray) -> np.ndarray:

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from .. import uncertainty as unc
 from ..uncertainty import UncertaintyModel, resolve_uncertainty
 from ..validation import require_bool, require_finite_positive, require_integer
 
@@ -192,6 +193,8 @@ class LandingTask(metaclass=_FrozenAfterInit):
     def __init__(self, scenario: Any, settings: StepSettings,
                  uncertainty: UncertaintyModel | str | dict | None = None) -> None:
         self.uncertainty = resolve_uncertainty(uncertainty)
+        # the navigation model packed once for the compiled navigation kernels
+        self._nav_consts = unc._navigation_constants(self.uncertainty)
         self.scenario = scenario
         self.settings = settings
         self.scaling = s = scenario.scaling()
@@ -286,6 +289,23 @@ class LandingTask(metaclass=_FrozenAfterInit):
         velocity errors ``dvel_m_s`` (B, 3) along the local (up, downrange, crossrange) axes (m,
         m/s; a planar task ignores crossrange) and mass errors ``dmass_kg`` (B,) (kg); a new
         array. Downrange is the direction of the scenario's initial motion."""
+
+    def navigation_states(self, y: np.ndarray, errors: unc.EpisodeErrors,
+                          counters: np.ndarray, mass_belief_kg: np.ndarray) -> np.ndarray:
+        """The navigated states (B, n_state) of true states ``y`` (B, n_state) under
+        ``uncertainty``: each lander's navigation errors
+        (:func:`~lunar_env.uncertainty.navigation_errors` of its episode ``errors`` (B rows)
+        at decision indices ``counters`` (B,) and its true :meth:`altitude_m`) and its flight
+        computer's mass error ``mass_belief_kg`` (B,) (kg) applied by :meth:`offset_states`;
+        a new array.
+
+        This default composes those public functions; a task may override it with a fused
+        compiled kernel that must give the same arrays bit for bit (the planar and pinpoint
+        tasks do: the env steps call this once per decision).
+        """
+        dpos, dvel = unc.navigation_errors(self.uncertainty, errors, counters,
+                                           self.altitude_m(y), self.n_axes)
+        return self.offset_states(y, dpos, dvel, mass_belief_kg)
 
     @abc.abstractmethod
     def radius_nd(self, y: np.ndarray) -> np.ndarray:

@@ -181,6 +181,52 @@ def test_navigation_noise_is_a_pure_function_of_key_and_counter():
     assert np.abs(np.corrcoef(big.T) - np.eye(6)).max() < 0.03
 
 
+def test_batched_noise_is_the_per_lander_definition_bit_for_bit():
+    # The compiled noise runs in vectorised passes over the batch; each draw must still be the
+    # per-lander definition (hash pairs, Acklam's quantile, truncation), so recorded episodes
+    # and common random numbers do not move. Enough draws to hit both tails and the clip.
+    rng = np.random.default_rng(8)
+    keys = rng.integers(0, 2**64 - 1, 700, dtype=np.uint64, endpoint=True)
+    counters = rng.integers(0, 3000, 700)
+    got = unc.navigation_noise(keys, counters, 5)
+    expect = np.empty_like(got)
+    for i, (k, c) in enumerate(zip(keys, counters, strict=True)):
+        base = unc._splitmix64(k ^ unc._splitmix64(np.uint64(c)))
+        for j in range(5):
+            h = unc._splitmix64(base + np.uint64(j - j % 2 + 1))
+            half = h >> np.uint64(32) if j % 2 == 0 else h & np.uint64(0xFFFFFFFF)
+            p = (float(half) + 0.5) / 2.0 ** 32
+            expect[i, j] = min(max(unc._normal_quantile(p), -4.5), 4.5)
+    np.testing.assert_array_equal(got, expect)
+    assert (np.abs(got) > 1.98).any()  # draws from the tails were checked too
+
+
+@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("name", ["standard", "stress"])
+def test_fused_navigation_kernel_equals_the_public_functions(env_id, name):
+    # the tasks' one-pass navigation kernel against LandingTask's composition of
+    # navigation_errors, altitude_m and offset_states: the same arrays, bit for bit, at
+    # altitudes above and below the radar's lock
+    from lunar_env.envs.task import LandingTask
+    venv = gym.make_vec(env_id, num_envs=64, vectorization_mode="vector_entry_point",
+                        uncertainty=name)
+    venv.reset(seed=2)
+    task = venv.unwrapped.task
+    b = venv.unwrapped._batch
+    y = b.y.copy()
+    h = np.linspace(0.0, 4000.0, 32) / task.length_ref_m  # every other lander down to 0 m
+    if task.n_axes == 2:
+        y[::2, 0] = task.r_stop_nd + h
+    else:
+        r = np.linalg.norm(y[::2, :3], axis=1)
+        y[::2, :3] *= ((task.surface_radius_nd + h) / r)[:, None]
+    counters = np.arange(64) * 37
+    got = task.navigation_states(y, b.errors, counters, b._mass_belief)
+    expect = LandingTask.navigation_states(task, y, b.errors, counters, b._mass_belief)
+    assert (task.altitude_m(y) < get_uncertainty(name).radar_altitude_m).any()
+    np.testing.assert_array_equal(got, expect)
+
+
 # -- the navigated observation -----------------------------------------------------------------
 
 @pytest.mark.parametrize("env_id", IDS)
