@@ -24,6 +24,21 @@ def pinpoint_dataset(tmp_path_factory):
     return root, ds
 
 
+@pytest.fixture(scope="module")
+def pinpoint_bc(pinpoint_dataset):
+    """One quick BC run on the dataset, shared (read only) by the DAgger tests: the clone that
+    DAgger starts from and whose roll-outs the expert labels (issue 33: trained once, not once
+    per test)."""
+    import agents.imitation.cli as im
+
+    root, _ = pinpoint_dataset
+    bc_dir = root / "bc"
+    assert im.main(["bc", "--quick", "--env", ENV_ID, "--dataset", str(root / "pp.npz"),
+                    "--run-dir", str(bc_dir), "--no-progress", "--no-tensorboard",
+                    "--eval-states", "0"]) == 0
+    return bc_dir
+
+
 def test_pinpoint_dataset_is_certified_by_the_env(pinpoint_dataset):
     import gymnasium as gym
 
@@ -68,16 +83,13 @@ def test_pinpoint_dataset_is_certified_by_the_env(pinpoint_dataset):
         ang[:, 0], ang[:, 1], sc.alpha_bounds_rad, sc.beta_bounds_rad), atol=1e-5)
 
 
-def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, tmp_path):
+def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, pinpoint_bc, tmp_path):
     import agents.imitation.cli as im
     from agents.common.sb3_law import SB3Law
 
     root, _ = pinpoint_dataset
     path = root / "pp.npz"
-    bc_dir = tmp_path / "bc"
-    assert im.main(["bc", "--quick", "--env", ENV_ID, "--dataset", str(path), "--run-dir",
-                    str(bc_dir), "--no-progress", "--no-tensorboard", "--eval-states",
-                    "0"]) == 0
+    bc_dir = pinpoint_bc
     hp = yaml.safe_load((bc_dir / "config.yml").read_text())
     assert "reference_profile" in hp["obs_features"] and "stop_point" in hp["obs_features"]
     pol = SB3Law.from_path(bc_dir)
@@ -118,20 +130,15 @@ def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, tmp_path):
     assert ft.vecnormalize is None or ft.vecnormalize.norm_obs is False
 
 
-def test_dagger_rollouts_mix_expert_and_policy(pinpoint_dataset, tmp_path):
+def test_dagger_rollouts_mix_expert_and_policy(pinpoint_bc):
     """β = 0: every roll-out is the policy's alone; β = 1: every roll-out starts with the
     expert (up to a random switch time), so none counts as policy-only. The roll-outs fly 4 s
     decisions (the clone was trained at 1 s): what is checked is the mixing, and a quarter of
     the expert's solves keeps this the cheap twin of a DAgger iteration (issue 33)."""
     import agents.experts.pinpoint.data as lab_mod
-    import agents.imitation.cli as im
     from agents.imitation.policy import load_learner
 
-    root, _ = pinpoint_dataset
-    bc_dir = tmp_path / "bc"
-    assert im.main(["bc", "--quick", "--env", ENV_ID, "--dataset", str(root / "pp.npz"),
-                    "--run-dir", str(bc_dir), "--no-progress", "--no-tensorboard",
-                    "--eval-states", "0"]) == 0
+    bc_dir = pinpoint_bc
     hp = yaml.safe_load((bc_dir / "config.yml").read_text())
     coarse = {"dt_s": 4.0}
     lab, roll = lab_mod.pinpoint_dagger_rollouts(bc_dir / "model.zip", load_learner, ENV_ID,
