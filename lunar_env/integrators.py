@@ -251,8 +251,8 @@ class PiecewisePolynomial:
     coefs: np.ndarray
 
     def __post_init__(self) -> None:
-        b = np.ascontiguousarray(self.breaks, dtype=np.float64)
-        c = np.ascontiguousarray(self.coefs, dtype=np.float64)
+        b = _kernel_array(self.breaks)
+        c = _kernel_array(self.coefs)
         if b.ndim != 2 or c.ndim != 4 or c.shape[0] != b.shape[0] or c.shape[1] != b.shape[1] - 1:
             raise ValueError(
                 f"breaks shape {b.shape} and coefs shape {c.shape} do not match; expected "
@@ -359,10 +359,19 @@ def params_rows(params, n: int) -> np.ndarray:
     """
     p = params.as_array() if hasattr(params, "as_array") else np.asarray(params, np.float64)
     if p.ndim == 1:
-        return np.ascontiguousarray(np.broadcast_to(p, (int(n), p.shape[0])))
+        return _kernel_array(np.broadcast_to(p, (int(n), p.shape[0])))
     if p.ndim != 2 or p.shape[0] != n:
         raise ValueError(f"params have shape {p.shape}; expected (n_params,) or ({n}, n_params)")
-    return np.ascontiguousarray(p, dtype=np.float64)
+    return _kernel_array(p)
+
+
+def _kernel_array(a) -> np.ndarray:
+    """``a`` as a C-contiguous, *writable* float64 array (a copy only when needed). Why
+    writable: numba compiles a separate specialisation of a kernel for every combination of
+    read-only inputs (a broadcast view of one trajectory is read-only), each costing the
+    kernel's full compilation (~10 s for the RK4 kernels) on a fresh machine."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    return a if a.flags.writeable else a.copy()
 
 
 def integrate(model: Model, y0_nd: np.ndarray, *, t0_nd, dt_nd, n_steps: int,
@@ -400,7 +409,7 @@ def integrate(model: Model, y0_nd: np.ndarray, *, t0_nd, dt_nd, n_steps: int,
     ValueError
         On shape mismatch, non-finite input or a non-positive step.
     """
-    y0 = np.ascontiguousarray(np.atleast_2d(y0_nd), dtype=np.float64)
+    y0 = _kernel_array(np.atleast_2d(y0_nd))
     n_traj = y0.shape[0]
     if y0.shape[1] != model.n_state:
         raise ValueError(f"y0 has {y0.shape[1]} components; model {model.name!r} needs "
@@ -413,8 +422,8 @@ def integrate(model: Model, y0_nd: np.ndarray, *, t0_nd, dt_nd, n_steps: int,
     n_steps = int(n_steps)
     if n_steps < 1:
         raise ValueError(f"n_steps = {n_steps} must be >= 1")
-    t0 = np.ascontiguousarray(np.broadcast_to(np.asarray(t0_nd, float), (n_traj,)))
-    dt = np.ascontiguousarray(np.broadcast_to(np.asarray(dt_nd, float), (n_traj,)))
+    t0 = _kernel_array(np.broadcast_to(np.asarray(t0_nd, float), (n_traj,)))
+    dt = _kernel_array(np.broadcast_to(np.asarray(dt_nd, float), (n_traj,)))
     if not (np.all(np.isfinite(dt)) and np.all(dt > 0)):
         raise ValueError(f"dt_nd must be finite and > 0, got {dt_nd!r}")
     r_stop = np.full(n_traj, np.nan)

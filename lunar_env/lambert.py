@@ -427,11 +427,13 @@ def _prepare(r1_m, r2_m, tof_s, mu_m3_s2, prograde, max_revs):
         raise ValueError(f"batch shapes do not broadcast: r1 {r1.shape}, r2 {r2.shape}, "
                          f"tof {tof.shape}, mu {mu.shape}, prograde {cw.shape}") from None
     n = batch[0] if batch else 1
-    r1 = np.ascontiguousarray(np.broadcast_to(r1, (n, 3)))
-    r2 = np.ascontiguousarray(np.broadcast_to(r2, (n, 3)))
-    tof = np.ascontiguousarray(np.broadcast_to(tof, (n,)))
-    mu = np.ascontiguousarray(np.broadcast_to(mu, (n,)))
-    cw = np.ascontiguousarray(np.broadcast_to(cw, (n,)))
+    # writable copies: numba compiles the kernel again for every read-only combination (a
+    # broadcast view of one problem is read-only)
+    r1 = np.array(np.broadcast_to(r1, (n, 3)), order="C")
+    r2 = np.array(np.broadcast_to(r2, (n, 3)), order="C")
+    tof = np.array(np.broadcast_to(tof, (n,)), order="C")
+    mu = np.array(np.broadcast_to(mu, (n,)), order="C")
+    cw = np.array(np.broadcast_to(cw, (n,)), order="C")
     if not (np.isfinite(r1).all() and np.isfinite(r2).all() and np.isfinite(tof).all()
             and np.isfinite(mu).all()):
         for name, a in (("r1_m", r1), ("r2_m", r2), ("tof_s", tof), ("mu_m3_s2", mu)):

@@ -22,19 +22,12 @@ from pathlib import Path
 # Each half in one process: a kernel's propagate_into calls that model's propagate of the same
 # (serial/parallel) kind, so a (model, kind) pair stays together (no compile done twice);
 # halves balanced by measured compile CPU (planar serial ~25 s, parallel ~40 s; moon3d serial
-# ~25 s, parallel ~45 s; the read-only variants below ~10 s per model; lambert, the envs and the
-# pinpoint expert a few seconds each; measured from cold: ~90 s of CPU per half). An env steps
-# in the half that compiles its model's serial kernels.
+# ~25 s, parallel ~45 s; lambert, the envs and the pinpoint expert a few seconds each). An env
+# steps in the half that compiles its model's serial kernels. Read-only inputs would be other
+# signatures (~10 s each); lunar_env.integrators passes writable copies (_kernel_array).
 PARTS = {
     "a": (("zhu2007", False), ("peng2012", True)),
     "b": (("zhu2007", True), ("peng2012", False)),
-}
-# Read-only inputs are another signature (``np.broadcast_to`` in ``integrate`` and
-# ``params_rows``), compiled again (~10 s each): the combinations of read-only (y0, t0, dt, p)
-# that the default run passes to the serial propagate kernel (seen in its cache index).
-READONLY_SERIAL = {
-    "zhu2007": ((0, 1, 1, 0), (0, 1, 1, 1), (0, 0, 1, 0), (1, 0, 0, 1), (1, 1, 1, 1)),
-    "peng2012": ((0, 1, 1, 0), (0, 1, 1, 1)),
 }
 
 
@@ -61,12 +54,6 @@ def _integrators(name: str, parallel: bool) -> None:
     out = (np.empty_like(y0), np.empty(n), np.empty(n, dtype=np.int64), np.empty(n))
     integ.integrate_prepared(model, y0, t0, h, 2, ctrl.breaks, ctrl.coefs, rows, dry, r_stop,
                              True, parallel, out=out)
-    for flags in () if parallel else READONLY_SERIAL[name]:
-        args = [a.copy() for a in (y0, t0, h, rows)]
-        for a, ro in zip(args, flags, strict=True):
-            a.setflags(write=not ro)
-        y, t, hh, p = args
-        model.kernel(False)(y, t, hh, 2, ctrl.breaks, ctrl.coefs, p, dry, r_stop, True, False)
 
 
 def _envs(env_ids: tuple[str, ...]) -> None:
