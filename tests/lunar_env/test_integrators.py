@@ -178,3 +178,25 @@ def test_touchdown_found_when_the_radius_dips_below_and_back_within_one_step():
     high = integrate(PLANAR, (y0 + [S.length_nd(5.0), 0, 0, 0, 0])[None], t0_nd=0, dt_nd=dt,
                      n_steps=1, control=ctrl, params=P, events=(RadiusCrossing(rL),))
     assert high.status[0] == STATUS_COMPLETED
+
+
+def test_read_only_inputs_do_not_compile_another_kernel():
+    """Bug fixed (issue 33): a read-only input (one trajectory's broadcast view, a user's frozen
+    array) made numba compile a separate specialisation of the RK4 kernel (~10 s each on a
+    fresh machine, seven of them in the default test run). ``integrate`` hands the kernel
+    writable copies: read-only and writable inputs give the same result and no new
+    signature."""
+    y0 = SC.state_nd().copy()[None]
+    ctrl = _braking_control()
+    dt = S.time_nd(1.0)
+    kw = dict(t0_nd=0.0, dt_nd=dt, n_steps=3, control=ctrl, params=P)
+    writable = integrate(PLANAR, y0, **kw)
+    kernel = PLANAR.kernel(False)
+    n_signatures = len(kernel.signatures)
+    frozen = y0.copy()
+    frozen.setflags(write=False)
+    rows = np.broadcast_to(P.as_array(), (1, P.as_array().size))   # read-only views
+    read_only = integrate(PLANAR, frozen,
+                          **(kw | {"t0_nd": np.broadcast_to(0.0, (1,)), "params": rows}))
+    assert len(kernel.signatures) == n_signatures
+    np.testing.assert_array_equal(read_only.y_end, writable.y_end)
