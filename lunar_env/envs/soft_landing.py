@@ -244,11 +244,7 @@ class PlanarTask(LandingTask):
         """As :meth:`LandingTask.navigation_states` (same arithmetic, bit for bit), in one
         compiled call."""
         out = np.empty((len(y), 5))
-        _navigation_kernel(np.ascontiguousarray(y, dtype=np.float64), errors.noise_key,
-                           np.ascontiguousarray(counters, dtype=np.int64),
-                           errors.nav_position_bias_m, errors.nav_velocity_bias_m_s,
-                           self._nav_consts, np.ascontiguousarray(mass_belief_kg,
-                                                                  dtype=np.float64),
+        _navigation_kernel(*self._navigation_inputs(y, errors, counters, mass_belief_kg),
                            self.r_stop_nd, self.length_ref_m, self.velocity_ref_m_s,
                            self.mass_ref_kg, out)
         return out

@@ -307,6 +307,16 @@ class LandingTask(metaclass=_FrozenAfterInit):
                                            self.altitude_m(y), self.n_axes)
         return self.offset_states(y, dpos, dvel, mass_belief_kg)
 
+    def _navigation_inputs(self, y: np.ndarray, errors: unc.EpisodeErrors,
+                           counters: np.ndarray, mass_belief_kg: np.ndarray) -> tuple:
+        """The leading arguments of a task's fused navigation kernel, in its order: (states,
+        noise keys, decision indices, position and velocity biases, the packed navigation
+        model, mass errors), as C-contiguous arrays of the kernel's dtypes."""
+        return (np.ascontiguousarray(y, dtype=np.float64), errors.noise_key,
+                np.ascontiguousarray(counters, dtype=np.int64), errors.nav_position_bias_m,
+                errors.nav_velocity_bias_m_s, self._nav_consts,
+                np.ascontiguousarray(mass_belief_kg, dtype=np.float64))
+
     @abc.abstractmethod
     def radius_nd(self, y: np.ndarray) -> np.ndarray:
         """Distance from the body's centre (normalised), shape (B,)."""
