@@ -141,6 +141,134 @@ def locate(kind, y, t, h, g_lo, g_hi, breaks, coefs, i, k, burn, p, r_stop, m_dr
     return hi
 
 
+def propagate_lane(i, y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_speed_min,
+                   record, y_end, t_end, status, t_burnout, n_rec, traj):
+    """Trajectory ``i`` of :func:`propagate`, its results written into row ``i`` of the output
+    arrays. One compiled function serves the serial and the parallel kernel (the parallel one
+    only spreads the rows over threads), so the step loop is compiled once per model."""
+    nx = y0.shape[1]
+    pi = p[i]  # this trajectory's parameters (a plant error makes them per-lander)
+    y = LOAD(y0[i])
+    t = t0[i]
+    h = dt[i]
+    rs = r_stop[i]
+    use_radius = rs == rs
+    burn = 1.0 if MASS(y) > m_dry else 0.0
+    k = 0
+    if record:
+        for j in range(nx):
+            traj[i, 0, j] = y[j]
+    st = EVENT_NONE
+    g_speed = 0.0
+    if stop_at_speed_min:
+        g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn, pi, rs, m_dry)
+    s_done = 0
+    carry = False
+    u0 = UZERO
+    c0 = PREP(u0)
+    for s in range(n_steps):
+        t_next = t0[i] + (s + 1) * h
+        k_new = segment_at(breaks, coefs, i, k, t)
+        if k_new != k:
+            k = k_new
+            carry = False
+            # a speed minimum is judged under a held control: restart the speed-rate
+            # sign at the new segment (a kink at the break itself is not an event)
+            if stop_at_speed_min:
+                g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn, pi,
+                                      rs, m_dry)
+        while True:
+            hh = t_next - t
+            # The control at the step's start is the one the previous full step ended with
+            # (same segment, same burn): carried over, its trigonometry is not redone.
+            if not carry:
+                u0 = control_in(breaks, coefs, i, k, t, burn)
+                c0 = PREP(u0)
+            u1 = control_in(breaks, coefs, i, k, t + 0.5 * hh, burn)
+            u2 = control_in(breaks, coefs, i, k, t + hh, burn)
+            c1 = c0 if u1 == u0 else PREP(u1)
+            c2 = c1 if u2 == u1 else PREP(u2)
+            y1 = rk4_core(y, hh, c0, c1, c2, pi)
+            kind = EVENT_NONE
+            best = hh
+            if burn > 0.0 and MASS(y1) <= m_dry:
+                tau = locate(EVENT_FUEL, y, t, hh, MASS(y) - m_dry, MASS(y1) - m_dry,
+                             breaks, coefs, i, k, burn, pi, rs, m_dry)
+                if tau <= best:
+                    best = tau
+                    kind = EVENT_FUEL
+            if use_radius:
+                g0 = RADIUS(y) - rs
+                g1 = RADIUS(y1) - rs
+                h_cross = -1.0
+                if g0 > 0.0 and g1 <= 0.0:
+                    h_cross = hh
+                elif g0 > 0.0 and RADIAL_RATE(y) < 0.0 and RADIAL_RATE(y1) > 0.0:
+                    # The radius has a minimum inside the step: a dip below r_stop and back
+                    # (a lander braking to a stop just under the surface) crosses twice and
+                    # shows no sign change at the step's ends. Look at the minimum.
+                    tau_m = locate(EVENT_RADIUS_MIN, y, t, hh, RADIAL_RATE(y),
+                                   RADIAL_RATE(y1), breaks, coefs, i, k, burn, pi, rs, m_dry)
+                    g_m = RADIUS(rk4_step(y, t, tau_m, breaks, coefs, i, k, burn, pi)) - rs
+                    if g_m <= 0.0:
+                        h_cross = tau_m
+                        g1 = g_m
+                if h_cross > 0.0:
+                    tau = locate(EVENT_RADIUS, y, t, h_cross, g0, g1, breaks, coefs, i, k,
+                                 burn, pi, rs, m_dry)
+                    if tau < best or kind == EVENT_NONE:
+                        best = tau
+                        kind = EVENT_RADIUS
+            g1s = 0.0
+            if stop_at_speed_min:
+                g1s = event_value(EVENT_SPEED_MIN, y1, t + hh, breaks, coefs, i, k, burn, pi,
+                                  rs, m_dry)
+                if g_speed < 0.0 and g1s >= 0.0:
+                    tau = locate(EVENT_SPEED_MIN, y, t, hh, g_speed, g1s, breaks, coefs, i,
+                                 k, burn, pi, rs, m_dry)
+                    if tau < best or kind == EVENT_NONE:
+                        best = tau
+                        kind = EVENT_SPEED_MIN
+            if kind == EVENT_NONE:
+                y = y1
+                t = t_next
+                g_speed = g1s
+                u0 = u2
+                c0 = c2
+                carry = True
+                break
+            carry = False
+            y = rk4_step(y, t, best, breaks, coefs, i, k, burn, pi)
+            t = t + best
+            if kind == EVENT_FUEL:
+                burn = 0.0
+                t_burnout[i] = t
+                if stop_at_speed_min:
+                    g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn,
+                                          pi, rs, m_dry)
+                if t_next - t <= 1e-15 * (1.0 + abs(t)):
+                    t = t_next
+                    break
+                continue
+            st = kind
+            break
+        s_done = s + 1
+        if record:
+            for j in range(nx):
+                traj[i, s_done, j] = y[j]
+        if st != EVENT_NONE:
+            break
+    status[i] = st
+    t_end[i] = t
+    n_rec[i] = s_done + 1
+    for j in range(nx):
+        y_end[i, j] = y[j]
+    if record:
+        for s2 in range(s_done + 1, n_steps + 1):
+            for j in range(nx):
+                traj[i, s2, j] = y[j]
+
+
 def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_speed_min,
               record):
     """Integrate a batch with fixed-step RK4 and in-step event location.
@@ -160,127 +288,13 @@ def propagate(y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop, stop_at_spee
         traj = np.empty((n_traj, n_steps + 1, nx))
     else:
         traj = np.empty((1, 1, nx))
+    # One signature of the lane for every caller: the row as int64 (a prange index is uint64)
+    # and the flag as a plain bool (propagate_into passes the literal False); each other
+    # signature would be a full compile of the step loop.
+    rec = np.bool_(record)
     for i in prange(n_traj):
-        pi = p[i]  # this trajectory's parameters (a plant error makes them per-lander)
-        y = LOAD(y0[i])
-        t = t0[i]
-        h = dt[i]
-        rs = r_stop[i]
-        use_radius = rs == rs
-        burn = 1.0 if MASS(y) > m_dry else 0.0
-        k = 0
-        if record:
-            for j in range(nx):
-                traj[i, 0, j] = y[j]
-        st = EVENT_NONE
-        g_speed = 0.0
-        if stop_at_speed_min:
-            g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn, pi, rs, m_dry)
-        s_done = 0
-        carry = False
-        u0 = UZERO
-        c0 = PREP(u0)
-        for s in range(n_steps):
-            t_next = t0[i] + (s + 1) * h
-            k_new = segment_at(breaks, coefs, i, k, t)
-            if k_new != k:
-                k = k_new
-                carry = False
-                # a speed minimum is judged under a held control: restart the speed-rate
-                # sign at the new segment (a kink at the break itself is not an event)
-                if stop_at_speed_min:
-                    g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn, pi,
-                                          rs, m_dry)
-            while True:
-                hh = t_next - t
-                # The control at the step's start is the one the previous full step ended with
-                # (same segment, same burn): carried over, its trigonometry is not redone.
-                if not carry:
-                    u0 = control_in(breaks, coefs, i, k, t, burn)
-                    c0 = PREP(u0)
-                u1 = control_in(breaks, coefs, i, k, t + 0.5 * hh, burn)
-                u2 = control_in(breaks, coefs, i, k, t + hh, burn)
-                c1 = c0 if u1 == u0 else PREP(u1)
-                c2 = c1 if u2 == u1 else PREP(u2)
-                y1 = rk4_core(y, hh, c0, c1, c2, pi)
-                kind = EVENT_NONE
-                best = hh
-                if burn > 0.0 and MASS(y1) <= m_dry:
-                    tau = locate(EVENT_FUEL, y, t, hh, MASS(y) - m_dry, MASS(y1) - m_dry,
-                                 breaks, coefs, i, k, burn, pi, rs, m_dry)
-                    if tau <= best:
-                        best = tau
-                        kind = EVENT_FUEL
-                if use_radius:
-                    g0 = RADIUS(y) - rs
-                    g1 = RADIUS(y1) - rs
-                    h_cross = -1.0
-                    if g0 > 0.0 and g1 <= 0.0:
-                        h_cross = hh
-                    elif g0 > 0.0 and RADIAL_RATE(y) < 0.0 and RADIAL_RATE(y1) > 0.0:
-                        # The radius has a minimum inside the step: a dip below r_stop and back
-                        # (a lander braking to a stop just under the surface) crosses twice and
-                        # shows no sign change at the step's ends. Look at the minimum.
-                        tau_m = locate(EVENT_RADIUS_MIN, y, t, hh, RADIAL_RATE(y),
-                                       RADIAL_RATE(y1), breaks, coefs, i, k, burn, pi, rs, m_dry)
-                        g_m = RADIUS(rk4_step(y, t, tau_m, breaks, coefs, i, k, burn, pi)) - rs
-                        if g_m <= 0.0:
-                            h_cross = tau_m
-                            g1 = g_m
-                    if h_cross > 0.0:
-                        tau = locate(EVENT_RADIUS, y, t, h_cross, g0, g1, breaks, coefs, i, k,
-                                     burn, pi, rs, m_dry)
-                        if tau < best or kind == EVENT_NONE:
-                            best = tau
-                            kind = EVENT_RADIUS
-                g1s = 0.0
-                if stop_at_speed_min:
-                    g1s = event_value(EVENT_SPEED_MIN, y1, t + hh, breaks, coefs, i, k, burn, pi,
-                                      rs, m_dry)
-                    if g_speed < 0.0 and g1s >= 0.0:
-                        tau = locate(EVENT_SPEED_MIN, y, t, hh, g_speed, g1s, breaks, coefs, i,
-                                     k, burn, pi, rs, m_dry)
-                        if tau < best or kind == EVENT_NONE:
-                            best = tau
-                            kind = EVENT_SPEED_MIN
-                if kind == EVENT_NONE:
-                    y = y1
-                    t = t_next
-                    g_speed = g1s
-                    u0 = u2
-                    c0 = c2
-                    carry = True
-                    break
-                carry = False
-                y = rk4_step(y, t, best, breaks, coefs, i, k, burn, pi)
-                t = t + best
-                if kind == EVENT_FUEL:
-                    burn = 0.0
-                    t_burnout[i] = t
-                    if stop_at_speed_min:
-                        g_speed = event_value(EVENT_SPEED_MIN, y, t, breaks, coefs, i, k, burn,
-                                              pi, rs, m_dry)
-                    if t_next - t <= 1e-15 * (1.0 + abs(t)):
-                        t = t_next
-                        break
-                    continue
-                st = kind
-                break
-            s_done = s + 1
-            if record:
-                for j in range(nx):
-                    traj[i, s_done, j] = y[j]
-            if st != EVENT_NONE:
-                break
-        status[i] = st
-        t_end[i] = t
-        n_rec[i] = s_done + 1
-        for j in range(nx):
-            y_end[i, j] = y[j]
-        if record:
-            for s2 in range(s_done + 1, n_steps + 1):
-                for j in range(nx):
-                    traj[i, s2, j] = y[j]
+        propagate_lane(np.int64(i), y0, t0, dt, n_steps, breaks, coefs, p, m_dry, r_stop,
+                       stop_at_speed_min, rec, y_end, t_end, status, t_burnout, n_rec, traj)
     return y_end, t_end, status, t_burnout, n_rec, traj
 
 

@@ -56,33 +56,52 @@ _PARALLEL_MIN_BATCH = 32
 # Inlined at numba-IR level on the hot path; the rarely called event code is left as calls to
 # keep compile time down.
 _INLINED: tuple[str, ...] = ()
-_TEMPLATE_FUNCTIONS = ("control_in", "segment_at", "rk4_core", "rk4_step", "event_value",
-                       "is_after", "locate", "propagate", "propagate_into")
+_HELPER_FUNCTIONS = ("control_in", "segment_at", "rk4_core", "rk4_step", "event_value",
+                     "is_after", "locate", "propagate_lane")
+
+
+def _prange_only() -> dict:
+    """numba's parallel options for the batch kernel: the ``prange`` over the rows only. With
+    ``parallel=True`` numba also turned the output allocations (``np.zeros``, ``np.full``) into
+    parallel loops, each compiled as a gufunc of its own (~4 s of compilation apiece from a
+    cold cache, issue 33) for no speed: the rows' work is the loop. (A new dict each time:
+    numba pops the keys.)"""
+    return {"prange": True, "comprehension": False, "reduction": False, "inplace_binop": False,
+            "setitem": False, "numpy": False, "stencil": False, "fusion": False}
 
 
 def _instantiate(model_name: str, bindings: dict) -> tuple:
     """Compile the template functions with the model's names bound; returns the ``propagate``
     kernels (serial, parallel) followed by the ``propagate_into`` kernels (serial, parallel).
 
-    Each copy gets its own qualified name so numba's on-disk cache keeps them apart.
+    Each copy gets its own qualified name so numba's on-disk cache keeps them apart. Only the
+    two driver functions differ between the serial and the parallel kernel (``prange`` over
+    the rows); the per-trajectory step loop (``propagate_lane``) and the helpers it calls are
+    compiled once and shared (issue 33: a second copy cost ~20 s of compilation per model from
+    a cold cache).
     """
+    def copy(fname: str, ns: dict, kind: str):
+        src = getattr(_tmpl, fname)
+        qual = f"{model_name}_{kind}_{fname}"
+        code = src.__code__.replace(co_name=qual, co_qualname=qual)
+        fn = types.FunctionType(code, ns, qual, src.__defaults__)
+        fn.__module__ = _tmpl.__name__
+        fn.__qualname__ = qual
+        return fn
+
+    shared = dict(vars(_tmpl))
+    shared.update(bindings)
+    for fname in _HELPER_FUNCTIONS:
+        fn = copy(fname, shared, "ser")  # the serial kernel's names, as cached before
+        shared[fname] = (njit(cache=True, inline="always")(fn) if fname in _INLINED
+                         else njit(cache=True)(fn))
     kernels, into = [], []
     for parallel in (False, True):
-        ns = dict(vars(_tmpl))
-        ns.update(bindings)
-        for fname in _TEMPLATE_FUNCTIONS:
-            src = getattr(_tmpl, fname)
-            qual = f"{model_name}_{'par' if parallel else 'ser'}_{fname}"
-            code = src.__code__.replace(co_name=qual, co_qualname=qual)
-            fn = types.FunctionType(code, ns, qual, src.__defaults__)
-            fn.__module__ = _tmpl.__name__
-            fn.__qualname__ = qual
-            if fname == "propagate":
-                ns[fname] = njit(cache=True, parallel=parallel)(fn)
-            elif fname in _INLINED:
-                ns[fname] = njit(cache=True, inline="always")(fn)
-            else:
-                ns[fname] = njit(cache=True)(fn)
+        ns = dict(shared)
+        kind = "par" if parallel else "ser"
+        ns["propagate"] = njit(cache=True, parallel=_prange_only() if parallel else False)(
+            copy("propagate", ns, kind))
+        ns["propagate_into"] = njit(cache=True)(copy("propagate_into", ns, kind))
         kernels.append(ns["propagate"])
         into.append(ns["propagate_into"])
     return (*kernels, *into)

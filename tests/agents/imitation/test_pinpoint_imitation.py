@@ -34,8 +34,8 @@ def pinpoint_bc(pinpoint_dataset):
     root, _ = pinpoint_dataset
     bc_dir = root / "bc"
     assert im.main(["bc", "--quick", "--env", ENV_ID, "--dataset", str(root / "pp.npz"),
-                    "--run-dir", str(bc_dir), "--no-progress", "--no-tensorboard",
-                    "--eval-states", "0"]) == 0
+                    "--run-dir", str(bc_dir), "--seed", "0", "--no-progress",
+                    "--no-tensorboard", "--eval-states", "0"]) == 0
     return bc_dir
 
 
@@ -97,9 +97,12 @@ def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, pinpoint_bc, tmp_path):
     assert pol.model.observation_space.shape == (31,)
 
     dg_dir = tmp_path / "dagger"
+    # one roll-out (seeded: the clone and its roll-out, hence the cost of the labels, are the
+    # same every run): the expert labels every state it visits, ~300 of them
     assert im.main(["dagger", "--quick", "--env", ENV_ID, "--dataset", str(path), "--init",
-                    str(bc_dir), "--run-dir", str(dg_dir), "--no-progress", "--no-tensorboard",
-                    "--eval-states", "0"]) == 0
+                    str(bc_dir), "--run-dir", str(dg_dir), "--seed", "0", "--no-progress",
+                    "--no-tensorboard", "--eval-states", "0",
+                    "--hyperparams", "dagger.n_episodes=1"]) == 0
     hist = yaml.safe_load((dg_dir / "dagger_history.yml").read_text())
     assert len(hist) == 1 and hist[0]["n_labels"] > 100
     # every visited state labelled by the feedback expert from converged solves only
@@ -142,16 +145,18 @@ def test_dagger_rollouts_mix_expert_and_policy(pinpoint_bc):
     hp = yaml.safe_load((bc_dir / "config.yml").read_text())
     coarse = {"dt_s": 4.0}
     lab, roll = lab_mod.pinpoint_dagger_rollouts(bc_dir / "model.zip", load_learner, ENV_ID,
-                                                 coarse, 2, 11, hp["obs_features"], beta=0.0,
+                                                 coarse, 1, 11, hp["obs_features"], beta=0.0,
                                                  progress=False)
-    assert roll["rollout_policy_only_episodes"] == 2
+    assert roll["rollout_policy_only_episodes"] == 1
     assert len(lab["obs"]) == len(lab["actions"]) > 10
     lab1, roll1 = lab_mod.pinpoint_dagger_rollouts(bc_dir / "model.zip", load_learner, ENV_ID,
-                                                   coarse, 2, 11, hp["obs_features"], beta=1.0,
+                                                   coarse, 1, 11, hp["obs_features"], beta=1.0,
                                                    progress=False)
     assert len(lab1["obs"]) > 10
+    # the expert flew the start: its labels are not the policy-only roll-out's
+    assert not np.array_equal(lab1["obs"][:5], lab["obs"][:5])
     # no policy-only episode: the rate is then over all roll-outs (documented fallback)
-    assert roll1["rollout_policy_only_episodes"] == 2 and 0.0 <= roll1["rollout_success_rate"]
+    assert roll1["rollout_policy_only_episodes"] == 1 and 0.0 <= roll1["rollout_success_rate"]
 
 
 def test_dataset_cli_runs_as_a_module(tmp_path):
