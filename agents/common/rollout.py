@@ -16,11 +16,14 @@ import math
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from agents.common.law import FlightComputer, GuidanceLaw, Navigation, Truth, law_label
+
+if TYPE_CHECKING:
+    from lunar_env.uncertainty import EpisodeErrors
 
 __all__ = ["CaseOutcomes", "Rollout", "fly", "make_vec", "vector_info"]
 
@@ -71,14 +74,21 @@ class CaseOutcomes:
 class Rollout(CaseOutcomes):
     """Per-case outcome of :func:`fly` (:class:`CaseOutcomes`) and the recorded histories.
 
-    ``records[i]`` (for the recorded cases) holds ``obs`` (T, n_obs), ``state_nd`` (T, n_state),
-    ``t_s`` (T,) — the states at which an action was taken — and ``action`` (T, n_act); with
-    ``record_final`` also the final state (``state_nd`` and ``t_s`` one longer).
+    ``records[i]`` (for the recorded cases) holds ``obs`` (T, n_obs), ``state_nd`` (T, n_state)
+    (the simulator's true states), ``navigation_state_nd`` (T, n_state) (the navigation
+    solutions the law was given: ``Navigation.state_nd``), ``t_s`` (T,) — the states at which
+    an action was taken — and ``action`` (T, n_act); with ``record_final`` also the final true
+    state (``state_nd`` and ``t_s`` one longer; the final state is no decision, so
+    ``navigation_state_nd`` stays T long).
     ``final_state_nd`` (n, n_state): every case's true state where its episode ended.
+    ``episode_errors``: every case's plant and navigation errors (n rows, the env's
+    ``episode_errors`` after the reset: unit scales and zeros without an uncertainty model),
+    the truth for analysis and privileged teachers.
     """
 
     records: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
     final_state_nd: np.ndarray | None = None
+    episode_errors: EpisodeErrors | None = None
 
 
 def _navigation(core, obs: np.ndarray, active: np.ndarray, privileged: bool
@@ -113,7 +123,8 @@ def fly(env_id: str, law: GuidanceLaw, n: int, *,
     reset_options : dict, optional
         Passed to ``reset`` (``state_si`` / ``state_nd`` rows pin each case's start).
     record : iterable of int
-        Cases whose observation, state, time and action histories are kept.
+        Cases whose observation, true state, navigation solution, time and action histories
+        are kept.
     record_final : bool
         Also record each recorded case's final state (before the autoreset).
     max_steps : int, optional
@@ -134,6 +145,8 @@ def fly(env_id: str, law: GuidanceLaw, n: int, *,
     try:
         obs, _ = venv.reset(seed=seed, options=reset_options)
         core = venv.unwrapped
+        # each case's first (and only flown) episode: read before any autoreset redraws a row
+        errors = core.episode_errors
         law.reset(FlightComputer.of(core, env_id), np.arange(n))
         name = law_label(law)
         if max_steps is None:
@@ -146,18 +159,21 @@ def fly(env_id: str, law: GuidanceLaw, n: int, *,
         t_end = np.full(n, np.nan)
         final = np.full(core.state_nd.shape, np.nan)
         ret = np.zeros(n)
-        hist = {i: {"obs": [], "state_nd": [], "t_s": [], "action": []} for i in rec}
+        hist = {i: {"obs": [], "state_nd": [], "navigation_state_nd": [], "t_s": [],
+                    "action": []} for i in rec}
         wall = 0.0
         n_dec = 0
         for _ in range(max_steps):
+            nav, truth = _navigation(core, obs, active, law.privileged)
             if rec:
                 states, times = core.state_nd, core.t_s
                 for i in rec:
                     if active[i]:
                         hist[i]["obs"].append(np.array(obs[i], copy=True))
                         hist[i]["state_nd"].append(np.array(states[i], copy=True))
+                        hist[i]["navigation_state_nd"].append(np.array(nav.state_nd[i],
+                                                                       copy=True))
                         hist[i]["t_s"].append(float(times[i]))
-            nav, truth = _navigation(core, obs, active, law.privileged)
             t0 = time.perf_counter()
             if truth is None:
                 action = law.act(nav)
@@ -199,4 +215,4 @@ def fly(env_id: str, law: GuidanceLaw, n: int, *,
         venv.close()
     records = {i: {k: np.asarray(v, dtype=np.float32 if k == "obs" else np.float64)
                    for k, v in h.items()} for i, h in hist.items()}
-    return Rollout(success, speed, miss, fuel, t_end, n_dec, wall, ret, records, final)
+    return Rollout(success, speed, miss, fuel, t_end, n_dec, wall, ret, records, final, errors)

@@ -58,7 +58,7 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
 
     from agents.imitation.sources import load_run_dataset
 
-    ds, env_kwargs = load_run_dataset(run)
+    ds, env_kwargs = load_run_dataset(run, hp.get("env_kwargs"))
     bc = hp["bc"]
     seed = int(run["seed"])
     th.manual_seed(seed)

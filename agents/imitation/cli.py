@@ -174,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         if args.dataset is None:
             parser.error("--dataset is required (make one with python -m agents.dataset)")
-        from agents.imitation.sources import open_dataset
+        from agents.imitation.sources import open_dataset, run_env_kwargs
 
         with user_input_errors(parser):
             check_env(args.env)
@@ -183,6 +183,11 @@ def main(argv: list[str] | None = None) -> int:
             if dataset.meta["env_id"] != args.env:
                 raise ValueError(f"--dataset {args.dataset} is for {dataset.meta['env_id']!r}, "
                                  f"not --env {args.env!r}")
+            # the dataset's env arguments, with the entry's env_kwargs (a profile's or
+            # --hyperparams env_kwargs.KEY=VALUE) over them: saved in config.yml, so that the
+            # roll-outs, the selection and every later load of the run fly the same env
+            hp["env_kwargs"] = run_env_kwargs(args.env, dataset.meta.get("env_kwargs"),
+                                              hp.get("env_kwargs"))
         from agents.common.runs import claim_run_dir
 
         try:  # both created atomically: concurrent runs never share a directory
@@ -191,7 +196,6 @@ def main(argv: list[str] | None = None) -> int:
         except FileExistsError as exc:
             parser.error(str(exc))
         run["run_dir"] = str(run_dir)
-        hp["env_kwargs"] = dataset.meta.get("env_kwargs") or {}
         write_text_atomic(run_dir / "config.yml", yaml.safe_dump(hp, sort_keys=True))
         write_text_atomic(run_dir / "args.yml", yaml.safe_dump(run, sort_keys=True))
         write_text_atomic(run_dir / "command.txt",

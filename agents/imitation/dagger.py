@@ -30,13 +30,18 @@ _DG_CKPT = re.compile(r"^dagger_iter_(\d+)\.zip$")
 
 
 def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False):
-    """DAgger with the closed-loop expert; returns the final PPO model (also ``model.zip``)."""
+    """DAgger with the closed-loop expert; returns the final PPO model (also ``model.zip``).
+
+    The policy flies the dataset's env with ``hp["env_kwargs"]`` merged over it
+    (:func:`agents.imitation.sources.run_env_kwargs`, e.g. an ``uncertainty`` model): the
+    roll-outs, the initial BC and the final selection alike. Its env family labels the
+    visited states (settings of ``hp["dagger"]``, e.g. the planar ``teacher``)."""
     import torch as th
     from stable_baselines3 import PPO
 
     from agents.imitation.sources import load_run_dataset
 
-    ds, env_kwargs = load_run_dataset(run)
+    ds, env_kwargs = load_run_dataset(run, hp.get("env_kwargs"))
     dg = hp["dagger"]
     seed = int(run["seed"])
     th.manual_seed(seed)

@@ -21,22 +21,28 @@ import numpy as np
 
 from agents.common.law import ActionSequenceLaw, CallableLaw
 from agents.common.rollout import fly
-from agents.experts.family import DaggerRequest, DatasetRecipe
+from agents.experts.family import DaggerRequest, DatasetRecipe, plant_scenario
 from agents.experts.flights import collect_samples, make_env
 from agents.experts.planar.expert import PontryaginExpert, planar_state_si
 from lunar_env import get_scenario
 from lunar_env.envs.soft_landing import action_from_thrust_angle
 from lunar_env.scenarios import PlanarScenario
 
-__all__ = ["LABEL_RULE", "OBSERVATION_NAMES", "trajectory_samples", "replay_labels",
-           "planar_shard", "planar_dataset_recipe", "rollout_policy", "label_episodes",
-           "planar_dagger_iteration"]
+__all__ = ["LABEL_RULE", "OBSERVATION_NAMES", "TEACHERS", "trajectory_samples", "replay_labels",
+           "planar_shard", "planar_dataset_recipe", "rollout_policy", "check_teacher",
+           "teacher_view", "label_chunk", "label_episodes", "planar_dagger_iteration"]
 
 LABEL_RULE = "action_from_thrust_angle(phi*(t_k + dt_s/2)), t_k = k*dt_s < tf"
 OBSERVATION_NAMES = ["altitude/h0", "vr/(0.1 v0)", "v_t/v0", "propellant/nominal",
                      "t/time_limit"]
 #: certification tolerances on the solver's terminal errors (m, m/s)
 DEFAULT_TOLERANCES = {"radius_m": 1e-3, "speed_m_s": 1e-3}
+#: DAgger teachers (setting ``dagger.teacher``; the first is the default):
+#: ``privileged`` plans from the lander's true state with its true plant (the scenario's engine
+#: with the episode's drawn thrust and Isp scales: the omniscient feedback law);
+#: ``navigated`` plans from the navigation solution the student is given, with the nominal
+#: plant (a teacher that sees what the student sees). In the nominal world they coincide.
+TEACHERS = ("privileged", "navigated")
 
 
 # --------------------------------------------------------------------------------- dataset
@@ -171,34 +177,92 @@ def rollout_policy(learner, env_id: str, env_kwargs: dict[str, Any] | None, n_ep
                    seed: int) -> list[dict[str, Any]]:
     """Fly ``learner(obs (N, n_obs)) -> actions (N, 1)`` from ``n_episodes`` dispersed starts.
 
-    Sub-env i is reset with seed ``seed + i``. Returns one dict per episode: ``obs`` (T, n_obs),
-    ``state_nd`` (T, 5), ``t_s`` (T,) — the states at which the policy acted — and the outcome
-    ``success``, ``fuel_kg``, ``touchdown_speed_m_s``.
+    Sub-env i is reset with seed ``seed + i`` (its plant and navigation errors, under an
+    ``uncertainty`` env argument, from that seed's error stream). Returns one dict per
+    episode: ``obs`` (T, n_obs), ``state_nd`` (T, 5) (the true states),
+    ``navigation_state_nd`` (T, 5) (the navigation solutions the observations encode) and
+    ``t_s`` (T,) — the states at which the policy acted —, the lander's true plant
+    ``thrust_scale`` and ``isp_scale`` (true / nominal; 1 without an uncertainty model), and
+    the outcome ``success``, ``fuel_kg``, ``touchdown_speed_m_s``.
     """
     law = CallableLaw(lambda nav: learner(nav.obs))
     res = fly(env_id, law, n_episodes, seed=seed, env_kwargs=env_kwargs,
               record=range(n_episodes), max_steps=100_000)
+    err = res.episode_errors
     out: list[dict[str, Any]] = []
     for i in range(n_episodes):
         r = res.records[i]
         out.append({"success": bool(res.is_success[i]), "fuel_kg": float(res.fuel_used_kg[i]),
                     "touchdown_speed_m_s": float(res.touchdown_speed_m_s[i]),
-                    "obs": r["obs"], "state_nd": r["state_nd"], "t_s": r["t_s"]})
+                    "obs": r["obs"], "state_nd": r["state_nd"],
+                    "navigation_state_nd": r["navigation_state_nd"], "t_s": r["t_s"],
+                    "thrust_scale": float(err.thrust_scale[i]),
+                    "isp_scale": float(err.isp_scale[i])})
     return out
+
+
+def check_teacher(teacher: str) -> str:
+    """``teacher`` if it is one of :data:`TEACHERS`, else ValueError naming the allowed ones."""
+    if not isinstance(teacher, str) or teacher not in TEACHERS:
+        raise ValueError(f"dagger teacher = {teacher!r} is not allowed; choose one of "
+                         f"{', '.join(TEACHERS)} (privileged: true state and true plant; "
+                         "navigated: the student's navigation solution and the nominal plant)")
+    return teacher
+
+
+def teacher_view(episode: dict[str, Any], teacher: str) -> tuple[np.ndarray, float, float]:
+    """What ``teacher`` knows of one roll-out: the states it plans from (T, 5), normalised,
+    and the plant's thrust and Isp scales (true / nominal).
+
+    ``privileged``: the recorded true states ``state_nd`` and the episode's ``thrust_scale``
+    and ``isp_scale`` (1 when absent: an episode flown on the nominal plant, e.g. an optimal
+    trajectory). The plant's thrust-direction misalignment is not part of it (decision): the
+    label is the commanded angle of the optimal plan, as the campaign's omniscient optimum
+    is the fuel of the true engine, not of a compensated gimbal. ``navigated``: the recorded
+    ``navigation_state_nd`` and scales of 1 (the nominal plant).
+
+    Raises
+    ------
+    ValueError
+        ``teacher`` is not one of :data:`TEACHERS`, or the navigated teacher is asked of an
+        episode without a recorded navigation solution.
+    """
+    check_teacher(teacher)
+    if teacher == "privileged":
+        return (np.asarray(episode["state_nd"], dtype=np.float64),
+                float(episode.get("thrust_scale", 1.0)), float(episode.get("isp_scale", 1.0)))
+    if "navigation_state_nd" not in episode:
+        raise ValueError("the navigated teacher needs each episode's navigation_state_nd "
+                         "(recorded by rollout_policy); this episode has only "
+                         f"{', '.join(sorted(episode))}")
+    return np.asarray(episode["navigation_state_nd"], dtype=np.float64), 1.0, 1.0
 
 
 def label_chunk(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
     """Label the chosen steps of some episodes with the closed-loop expert (an executor task).
 
-    The expert plans from the episodes' recorded *true* states: a privileged teacher, as the
-    pinpoint roll-outs' :class:`agents.experts.pinpoint.data.DaggerRolloutTeacher`."""
+    ``job``: ``scenario`` (name), ``dt_s``, ``teacher`` (one of :data:`TEACHERS`; default
+    ``privileged``), ``episodes`` (dicts with ``obs``, ``t_s``, ``label_idx`` and what
+    :func:`teacher_view` reads). The expert (:class:`PontryaginExpert`, one per episode,
+    re-planning in time order warm-started from its previous plan) plans from the teacher's
+    states with the teacher's plant: ``privileged``, the true states and the lander's true
+    engine (:func:`agents.experts.family.plant_scenario`, as the campaign's omniscient optimum
+    and the pinpoint roll-outs' :class:`agents.experts.pinpoint.data.DaggerRolloutTeacher`);
+    ``navigated``, the navigation solutions the student saw and the nominal engine. The SI
+    states come from the nominal scaling, which the plant does not change. The labels pair
+    the student's observations ``obs`` with the teacher's actions."""
+    from optimizers.indirect.planar import release_solvers
+
     sc = get_scenario(job["scenario"])
     dt_s = float(job["dt_s"])
+    teacher = check_teacher(job.get("teacher", TEACHERS[0]))
     res = []
     for ep in job["episodes"]:
-        expert = PontryaginExpert(sc)
+        states_nd, thrust_scale, isp_scale = teacher_view(ep, teacher)
+        plant = plant_scenario(sc, thrust_scale, isp_scale)
+        expert = PontryaginExpert(plant)
         idx = ep["label_idx"]
-        si = planar_state_si(sc, ep["state_nd"][idx])
+        si = planar_state_si(sc, states_nd[idx])
         phi = np.empty(len(idx))
         status = []
         n_fallback = 0
@@ -221,6 +285,9 @@ def label_chunk(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
                 p = float(plan.thrust_angle_at(0.5 * dt_s))
             phi[j] = p
             status.append(st)
+        if plant is not sc:
+            # each true plant has its own shooting functions (a few MB): one episode's only
+            release_solvers()
         idx, phi = idx[:n_done], phi[:n_done]
         res.append({"obs": ep["obs"][idx],
                     "actions": np.asarray(action_from_thrust_angle(phi),
@@ -234,16 +301,23 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
                    progress: bool = True, min_speed_m_s: float = 3.0,
                    velocity_ref_m_s: float | None = None,
                    cache_dir: str | Path | None = None,
-                   tail_label_every: int = 1) -> dict[str, np.ndarray]:
+                   tail_label_every: int = 1, teacher: str = TEACHERS[0]
+                   ) -> dict[str, np.ndarray]:
     """Expert labels for the visited states of planar policy roll-outs.
+
+    ``teacher`` (:data:`TEACHERS`): whose view the expert plans from (:func:`label_chunk`,
+    :func:`teacher_view`): ``privileged`` (default), the true states and the lander's true
+    plant; ``navigated``, the navigation solutions and the nominal plant. The episodes are
+    those of :func:`rollout_policy`.
 
     Every ``label_every``-th step of each episode and every step in its last ``dense_tail_s``
     seconds (where landing accuracy is decided) is labelled, in time order per episode so the
     expert re-plans warm-started from its previous plan. States slower than ``min_speed_m_s``
-    relative to the surface are not labelled (decision): the env cuts the engine within a step
-    there, so the action hardly matters, and from a near-hover high above the ground no landing
-    exists — the expert then spends seconds to tens of seconds failing to find one (measured:
-    40 s for one such state on the loaded machine) before returning its braking fallback.
+    relative to the surface (as the teacher sees them) are not labelled (decision): the env
+    cuts the engine within a step there, so the action hardly matters, and from a near-hover
+    high above the ground no landing exists — the expert then spends seconds to tens of
+    seconds failing to find one (measured: 40 s for one such state on the loaded machine)
+    before returning its braking fallback.
     After more than two consecutive fallbacks an episode's remaining states are skipped too.
     ``tail_label_every`` thins the dense tail.
 
@@ -260,10 +334,12 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
     Raises
     ------
     ValueError
-        ``scenario_name`` is not a planar scenario.
+        ``scenario_name`` is not a planar scenario, or ``teacher`` is not one of
+        :data:`TEACHERS`.
     """
     from optimizers.common.executor import LocalExecutor, ResultStore, Task, TaskKey, run_tasks
 
+    check_teacher(teacher)
     if not isinstance(get_scenario(scenario_name), PlanarScenario):
         raise ValueError(f"scenario {scenario_name!r} is not a planar scenario: its DAgger data "
                          "comes from its own family (agents.common.families.family_of)")
@@ -277,23 +353,27 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
         k_tail = np.cumsum(tail) - 1
         sel = (k % max(int(label_every), 1) == 0) | (
             tail & (k_tail % max(int(tail_label_every), 1) == 0))
+        x, thrust_scale, isp_scale = teacher_view(ep, teacher)
         if velocity_ref_m_s is not None:
-            x = ep["state_nd"]
             speed = np.hypot(x[:, 1], x[:, 0] * x[:, 3]) * float(velocity_ref_m_s)
             sel &= speed >= float(min_speed_m_s)
-        jobs_eps.append({"obs": ep["obs"], "state_nd": ep["state_nd"], "t_s": t,
-                         "label_idx": np.flatnonzero(sel)})
+        # the task gets only the teacher's view (a privileged one as "state_nd" and its plant)
+        view = ({"state_nd": x, "thrust_scale": thrust_scale, "isp_scale": isp_scale}
+                if teacher == "privileged" else {"navigation_state_nd": x})
+        jobs_eps.append({"obs": ep["obs"], "t_s": t, "label_idx": np.flatnonzero(sel),
+                         **view})
     n_workers = max(1, min(int(n_workers), len(jobs_eps)))
     # one task per few episodes: the pool balances the load and the bar moves as tasks finish
     per_task = max(1, min(4, len(jobs_eps) // (4 * n_workers) or 1))
-    jobs = [{"scenario": scenario_name, "dt_s": dt_s, "episodes": jobs_eps[i:i + per_task]}
+    jobs = [{"scenario": scenario_name, "dt_s": dt_s, "teacher": teacher,
+             "episodes": jobs_eps[i:i + per_task]}
             for i in range(0, len(jobs_eps), per_task)]
     store = None if cache_dir is None else ResultStore(
         cache_dir, identity={"scenario": scenario_name, "dt_s": float(dt_s),
                              "label_every": int(label_every),
                              "dense_tail_s": float(dense_tail_s),
                              "tail_label_every": int(tail_label_every),
-                             "min_speed_m_s": float(min_speed_m_s),
+                             "min_speed_m_s": float(min_speed_m_s), "teacher": teacher,
                              "n_episodes": len(jobs_eps), "n_tasks": len(jobs)},
         fmt="pickle")
     tasks = [Task(TaskKey(f"dagger-labels-{scenario_name}", 0, i), label_chunk, (job,))
@@ -315,9 +395,18 @@ def planar_dagger_iteration(scenario, request: DaggerRequest
                             ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     """One planar DAgger iteration (see :meth:`agents.experts.family.EnvFamily.
     dagger_iteration`): the policy flies alone (deterministic) from ``n_episodes`` dispersed
-    starts, then :func:`label_episodes` labels the visited states (settings ``label_every``,
-    ``dense_tail_s``, ``min_label_speed_m_s`` (default 3 m/s), ``tail_label_every`` (1))."""
+    starts (under the request's ``env_kwargs``, e.g. an ``uncertainty`` model), then
+    :func:`label_episodes` labels the visited states (settings ``teacher`` (:data:`TEACHERS`,
+    default ``privileged``), ``label_every``, ``dense_tail_s``, ``min_label_speed_m_s``
+    (default 3 m/s), ``tail_label_every`` (1)).
+
+    Raises
+    ------
+    ValueError
+        ``teacher`` is not one of :data:`TEACHERS` (checked before anything is flown).
+    """
     dg = request.settings
+    teacher = check_teacher(dg.get("teacher", TEACHERS[0]))
     t0 = time.perf_counter()
     learner = request.load_learner(request.policy_file, request.env_id, request.env_kwargs,
                                    request.obs_features)
@@ -333,7 +422,8 @@ def planar_dagger_iteration(scenario, request: DaggerRequest
                          min_speed_m_s=float(dg.get("min_label_speed_m_s", 3.0)),
                          velocity_ref_m_s=scenario.scaling().velocity_m_s,
                          cache_dir=request.store_dir,
-                         tail_label_every=int(dg.get("tail_label_every", 1)))
+                         tail_label_every=int(dg.get("tail_label_every", 1)),
+                         teacher=teacher)
     roll["label_wall_s"] = time.perf_counter() - t0
     return lab, roll
 

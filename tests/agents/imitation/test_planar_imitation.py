@@ -257,3 +257,36 @@ def test_dagger_label_parts_resume_from_the_result_store(small_dataset, tmp_path
     # another family's scenario is refused by name
     with pytest.raises(ValueError, match="'wang2001_transfer' is not a planar scenario"):
         pd.label_episodes(eps, "wang2001_transfer", 1.0, 40, 0.0, progress=False)
+
+
+def test_dagger_under_uncertainty_records_its_env_kwargs(small_dataset, bc_dir, tmp_path):
+    """``--config robust`` (env_kwargs {uncertainty: standard} merged over the dataset's) and
+    ``dagger.teacher=navigated``: the roll-outs fly under the errors, and config.yml keeps the
+    merged env arguments (what loading the run later flies); a run may not change the
+    dataset's decision interval."""
+    import yaml
+
+    from agents.common.runs import read_run
+
+    path, _ = small_dataset
+    dg_dir = tmp_path / "dagger_robust"
+    # only each roll-out's first state is labelled (no tail): the 1-epoch clone's later states
+    # are unlandable, and the expert spends seconds on each before its fallback
+    quick = ["dagger.n_iterations=1", "dagger.n_episodes=2", "dagger.n_epochs=1",
+             "dagger.label_every=100000", "dagger.dense_tail_s=-1", "dagger.n_label_workers=1",
+             "dagger.batch_size=256"]
+    assert im.main(["dagger", "--config", "robust", "--dataset", str(path), "--init", str(bc_dir),
+                    "--run-dir", str(dg_dir), "--seed", "0", "--no-progress",
+                    "--no-tensorboard", "--hyperparams", "dagger.teacher=navigated",
+                    *quick]) == 0
+    cfg = yaml.safe_load((dg_dir / "config.yml").read_text())
+    assert cfg["env_kwargs"] == {"uncertainty": "standard"}
+    assert cfg["dagger"]["teacher"] == "navigated"
+    assert read_run(dg_dir)[1]["env_kwargs"] == {"uncertainty": "standard"}
+    hist = yaml.safe_load((dg_dir / "dagger_history.yml").read_text())
+    assert len(hist) == 1 and hist[0]["n_labels"] == 2
+    with pytest.raises(SystemExit):
+        im.main(["dagger", "--config", "robust", "--dataset", str(path), "--init", str(bc_dir),
+                 "--run-dir", str(tmp_path / "bad"), "--no-progress", "--no-tensorboard",
+                 "--hyperparams", "env_kwargs.dt_s=2.5", *quick])
+    assert not (tmp_path / "bad").exists()

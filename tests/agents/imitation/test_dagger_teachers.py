@@ -1,0 +1,163 @@
+"""The planar DAgger's two teachers (issue 31): ``privileged`` (true state, true plant) and
+``navigated`` (the student's navigation solution, nominal plant), on short roll-outs under
+uncertainty models that isolate one kind of error; and the run's env arguments."""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import numpy as np
+import pytest
+
+from agents.experts.planar import data as pd
+from agents.experts.planar.expert import PontryaginExpert, planar_state_si
+from lunar_env import get_scenario
+
+ENV_ID = "LunarSoftLanding-v0"
+SCENARIO = "zhu2007"
+DT_S = 1.0
+#: labelled steps of the truncated roll-outs: every 20th and the last (dense tail of 0 s)
+N_STEPS, LABEL_EVERY = 60, 20
+THRUST_ONLY = {"thrust_scale": 0.05}
+NAVIGATION_ONLY = {"nav_position_bias_m": [100.0, 200.0, 0.0],
+                   "nav_velocity_bias_m_s": [0.5, 0.5, 0.0],
+                   "nav_position_noise_m": [10.0, 10.0, 0.0]}
+
+
+def _hold_attitude(obs: np.ndarray) -> np.ndarray:
+    """A student that holds φ = 0 (the optimum's early attitude): its first minute of flight
+    stays landable, so the expert converges from every labelled state."""
+    return np.zeros((len(obs), 1), dtype=np.float32)
+
+
+def _episodes(uncertainty) -> list[dict]:
+    """Two roll-outs under ``uncertainty``, cut to their first :data:`N_STEPS` decisions."""
+    eps = pd.rollout_policy(_hold_attitude, ENV_ID, {"uncertainty": uncertainty}, 2, seed=7)
+    return [{k: (v[:N_STEPS] if isinstance(v, np.ndarray) else v) for k, v in e.items()}
+            for e in eps]
+
+
+def _labels(eps: list[dict], teacher: str) -> dict[str, np.ndarray]:
+    sc = get_scenario(SCENARIO)
+    return pd.label_episodes(eps, SCENARIO, DT_S, LABEL_EVERY, 0.0, progress=False,
+                             velocity_ref_m_s=sc.scaling().velocity_m_s, teacher=teacher)
+
+
+def _expert_labels(scenario, eps: list[dict], key: str) -> np.ndarray:
+    """The labels written out: per episode one expert on ``scenario``, re-planning in time
+    order from the states ``ep[key]`` at the labelled steps, each label the new plan's angle
+    at mid-step."""
+    nominal = get_scenario(SCENARIO)
+    out = []
+    for ep in eps:
+        idx = np.r_[np.arange(0, N_STEPS, LABEL_EVERY), N_STEPS - 1]
+        expert = PontryaginExpert(scenario)
+        for k in idx:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                expert(planar_state_si(nominal, ep[key][k]), t_s=float(ep["t_s"][k]))
+            assert expert.last_status == ["optimal"]
+            out.append(expert.plan(0).thrust_angle_at(0.5 * DT_S))
+    return np.asarray(out)
+
+
+def test_rollout_records_navigation_and_true_plant():
+    """The roll-outs keep the true states, the navigation solutions the observations encode,
+    and each lander's drawn engine (1 in the nominal world)."""
+    nominal = _episodes("none")
+    for ep in nominal:
+        np.testing.assert_array_equal(ep["navigation_state_nd"], ep["state_nd"])
+        assert ep["thrust_scale"] == ep["isp_scale"] == 1.0
+    nav = _episodes(NAVIGATION_ONLY)
+    for ep in nav:
+        assert ep["navigation_state_nd"].shape == ep["state_nd"].shape
+        assert not np.allclose(ep["navigation_state_nd"][:, 0], ep["state_nd"][:, 0],
+                               rtol=0.0, atol=1e-7)
+        assert ep["thrust_scale"] == ep["isp_scale"] == 1.0
+
+
+def test_nominal_world_both_teachers_label_identically():
+    eps = _episodes("none")
+    priv, navi = _labels(eps, "privileged"), _labels(eps, "navigated")
+    assert len(priv["obs"]) == 2 * 4
+    for k in priv:
+        np.testing.assert_array_equal(priv[k], navi[k], err_msg=k)
+
+
+def test_privileged_teacher_plans_with_the_landers_true_engine():
+    """Thrust error only: the privileged labels are the expert's on a scenario whose engine
+    has the lander's true thrust, from the true states; the navigated teacher (nominal engine)
+    labels otherwise."""
+    eps = _episodes(THRUST_ONLY)
+    scales = [ep["thrust_scale"] for ep in eps]
+    assert all(abs(s - 1.0) > 1e-3 for s in scales) and all(ep["isp_scale"] == 1.0 for ep in eps)
+    priv = _labels(eps, "privileged")
+    nominal = get_scenario(SCENARIO)
+    want = []
+    for ep in eps:
+        v = nominal.vehicle
+        true_engine = dataclasses.replace(
+            nominal, vehicle=dataclasses.replace(v, thrust_n=v.thrust_n * ep["thrust_scale"]))
+        want.append(_expert_labels(true_engine, [ep], "state_nd"))
+    np.testing.assert_allclose(priv["phi_rad"], np.concatenate(want), rtol=0.0, atol=1e-12)
+    assert set(priv["status"]) == {"optimal"}
+    navi = _labels(eps, "navigated")
+    assert np.max(np.abs(navi["phi_rad"] - priv["phi_rad"])) > 1e-4
+    np.testing.assert_array_equal(priv["obs"], navi["obs"])  # same student observations
+
+
+def test_navigated_teacher_plans_from_the_navigation_solution():
+    """Navigation errors only: the navigated teacher's labels are the nominal expert's at the
+    navigated states; the privileged teacher's are the same expert's at the true states."""
+    eps = _episodes(NAVIGATION_ONLY)
+    nominal = get_scenario(SCENARIO)
+    navi = _labels(eps, "navigated")
+    np.testing.assert_allclose(navi["phi_rad"],
+                               _expert_labels(nominal, eps, "navigation_state_nd"),
+                               rtol=0.0, atol=1e-12)
+    priv = _labels(eps, "privileged")
+    np.testing.assert_allclose(priv["phi_rad"], _expert_labels(nominal, eps, "state_nd"),
+                               rtol=0.0, atol=1e-12)
+    assert np.max(np.abs(navi["phi_rad"] - priv["phi_rad"])) > 1e-6
+
+
+def test_bad_teacher_is_refused_by_name():
+    from agents.experts.family import DaggerRequest
+
+    eps = [{"obs": np.zeros((1, 5), np.float32), "state_nd": np.ones((1, 5)),
+            "t_s": np.zeros(1)}]
+    with pytest.raises(ValueError, match=r"teacher = 'oracle' is not allowed; choose one of "
+                                         r"privileged, navigated"):
+        pd.label_episodes(eps, SCENARIO, DT_S, 1, 0.0, progress=False, teacher="oracle")
+    with pytest.raises(ValueError, match="'oracle'"):
+        pd.label_chunk({"scenario": SCENARIO, "dt_s": DT_S, "teacher": "oracle",
+                        "episodes": []})
+
+    def never(*args):
+        raise AssertionError("the teacher must be checked before the policy is loaded")
+
+    request = DaggerRequest(env_id=ENV_ID, env_kwargs={}, policy_file="none.zip",
+                            load_learner=never, obs_features=None, n_episodes=1, seed=0,
+                            settings={"teacher": "Privileged", "label_every": 1,
+                                      "dense_tail_s": 0.0})
+    with pytest.raises(ValueError, match="'Privileged'"):
+        pd.planar_dagger_iteration(get_scenario(SCENARIO), request)
+    # the navigated teacher needs the navigation solutions of a roll-out
+    with pytest.raises(ValueError, match="navigation_state_nd"):
+        pd.label_episodes(eps, SCENARIO, DT_S, 1, 0.0, progress=False, teacher="navigated")
+
+
+def test_run_env_kwargs_merge_over_the_dataset_and_keep_its_decision_interval():
+    from agents.imitation.sources import run_env_kwargs
+
+    assert run_env_kwargs(ENV_ID, {}, None) == {}
+    assert run_env_kwargs(ENV_ID, {"dt_s": 1.0}, {"uncertainty": "standard"}) == {
+        "dt_s": 1.0, "uncertainty": "standard"}
+    # the env's default equals the dataset's implicit value: allowed
+    assert run_env_kwargs(ENV_ID, {}, {"dt_s": 1.0, "uncertainty": "standard"}) == {
+        "dt_s": 1.0, "uncertainty": "standard"}
+    with pytest.raises(ValueError, match=r"changes the env's dt_s from the dataset's 1.0 to 2.5"):
+        run_env_kwargs(ENV_ID, {}, {"dt_s": 2.5, "uncertainty": "standard"})
+    with pytest.raises(ValueError, match="must be a mapping"):
+        run_env_kwargs(ENV_ID, {}, "standard")
