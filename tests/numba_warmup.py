@@ -22,9 +22,9 @@ from pathlib import Path
 # Each half in one process: a model's serial and parallel kernels share their compiled step
 # loop (lunar_env.integrators._instantiate), so a model stays together (no compile done twice).
 # Halves balanced by measured compile time from a cold cache: planar ~26 s, moon3d ~28 s (both
-# kinds), the envs ~7 s each, lambert ~10 s, the pinpoint expert ~13 s (its own kernels): ~45
-# and ~52 s alone, ~57 s of wall for both at once. An env steps in the half that compiles its
-# model. Read-only inputs would be other signatures (~10 s each); lunar_env.integrators passes
+# kinds), the envs ~7 s each, lambert ~10 s (its serial and parallel kernels apart), the
+# pinpoint expert ~13 s (its own kernels). An env steps in the half that compiles its model.
+# Read-only inputs would be other signatures (~10 s each); lunar_env.integrators passes
 # writable copies (_kernel_array).
 PARTS = {
     "a": (("zhu2007", False), ("zhu2007", True)),
@@ -76,16 +76,15 @@ def _envs(env_ids: tuple[str, ...]) -> None:
         vec.close()
 
 
-def _lambert() -> None:
+def _lambert(parallel: bool) -> None:
     import numpy as np
 
     from lunar_env.lambert import solve_lambert, solve_lambert_flat
 
     r1 = np.array([[1.0, 0.0, 0.0]] * 2)
     r2 = np.array([[0.0, 1.5, 0.1]] * 2)
-    for parallel in (False, True):
-        solve_lambert(r1, r2, np.array([20.0, 30.0]), 1.0, max_revs=2, parallel=parallel)
-        solve_lambert_flat(r1, r2, np.array([20.0, 30.0]), 1.0, max_revs=2, parallel=parallel)
+    solve_lambert(r1, r2, np.array([20.0, 30.0]), 1.0, max_revs=2, parallel=parallel)
+    solve_lambert_flat(r1, r2, np.array([20.0, 30.0]), 1.0, max_revs=2, parallel=parallel)
 
 
 def _pinpoint_expert() -> None:
@@ -105,9 +104,10 @@ def warm(part: str) -> None:
     if part == "a":
         _envs(("LunarSoftLanding-v0",))
         _pinpoint_expert()  # its own kernels, no integrator's
+        _lambert(parallel=False)
     else:
         _envs(("LunarPinpointLanding-v2",))
-        _lambert()
+        _lambert(parallel=True)
 
 
 def warm_in_parallel(root: Path) -> float:

@@ -139,7 +139,7 @@ def test_bc_dagger_end_to_end(small_dataset, tmp_path):
     dg_dir = tmp_path / "dagger"
     assert im.main(["dagger", "--quick", "--dataset", str(path), "--init", str(bc_dir),
                     "--run-dir", str(dg_dir), "--seed", "0", "--no-progress",
-                    "--no-tensorboard", "--hyperparams", "dagger.n_episodes=2",
+                    "--no-tensorboard", "--hyperparams", "dagger.n_episodes=1",
                     "dagger.label_every=100", "dagger.dense_tail_s=0"]) == 0
     hist = yaml.safe_load((dg_dir / "dagger_history.yml").read_text())
     assert len(hist) == 1 and hist[0]["n_labels"] > 0
