@@ -242,10 +242,15 @@ def test_training_killed_at_a_random_point_resumes(tmp_path):
         _compare_with_uninterrupted(run_dir, ref)
 
 
-def test_seed_race_stopped_by_sigterm_checkpoints_every_candidate_and_resumes(tmp_path):
+def test_seed_race_stopped_by_sigterm_checkpoints_every_candidate_and_resumes(tmp_path, capfd):
     """SIGTERM to a seed race (its candidates are executor tasks in worker processes): every
     candidate writes a checkpoint, the run exits with 130 and leaves no worker behind, and
-    ``--resume`` trains the candidates on from there and decides the race."""
+    ``--resume`` trains the candidates on from there, selects each one's checkpoint in its
+    worker, decides the race and adopts the winner's selected policy without training again.
+
+    The default run's race test; ``tests/agents/rl/test_seed_race.py::
+    test_quick_race_end_to_end_and_its_resume`` (``slow``) adds an uninterrupted race and a
+    resume after one candidate finished."""
     run_dir = tmp_path / "race"
     n = 8192
     proc = python(_TRAIN_CLI, "--quick", "--env", "LunarPinpointLanding-v2", "--seed", "3",
@@ -274,9 +279,24 @@ def test_seed_race_stopped_by_sigterm_checkpoints_every_candidate_and_resumes(tm
     stopped = [max(int(f.stem.split("_")[2]) for f in c.glob("rl_model_*_steps.zip"))
                for c in cands]
     assert all(0 < s < n for s in stopped), stopped
+    capfd.readouterr()
     assert _resume(run_dir) == 0
+    out = capfd.readouterr().out
+    for s, k in zip((3, 4), stopped, strict=True):
+        assert f"[seed {s}] Resuming {cands[s - 3].parent} from step {k} of {n}" in out, out
+        assert f"[seed {s}] selection: the checkpoint" in out and f"[seed {s}] step" in out
+    # only the candidates train; the run adopts the winner's files as they are
+    assert "Trained" not in out.replace("[seed 3] Trained", "").replace("[seed 4] Trained", "")
     race = yaml.safe_load((run_dir / "race.yml").read_text())
     assert race["seeds"] == [3, 4] and race["decide_at_steps"] == n
+    winner = run_dir / "race" / f"seed_{race['chosen_seed']}"
+    for name in ("model.zip", "vecnormalize.pkl", "selection.yml"):
+        assert (run_dir / name).read_bytes() == (winner / name).read_bytes()
+    args = yaml.safe_load((run_dir / "args.yml").read_text())
+    assert args["seed"] == race["chosen_seed"] and args["race_seed"] == 3
+    for s in (3, 4):  # a candidate is an ordinary run
+        cand_hp = yaml.safe_load((run_dir / "race" / f"seed_{s}" / "config.yml").read_text())
+        assert "seed_race" not in cand_hp and cand_hp["select_checkpoint"]
     assert _steps_of(run_dir) == n
 
 

@@ -104,8 +104,13 @@ def _quick_race(tmp_path, n_timesteps: int, extra=()):
     return run_dir
 
 
+@pytest.mark.slow
 def test_quick_race_end_to_end_and_its_resume(tmp_path, capfd):
-    """Both quick candidates train to the end and select their checkpoints in executor worker
+    """(``slow``: its quick twin in the default run is ``tests/agents/
+    test_run_dirs_and_resume.py::test_seed_race_stopped_by_sigterm_checkpoints_every_candidate_
+    and_resumes``, a race stopped, resumed, decided and adopted.)
+
+    Both quick candidates train to the end and select their checkpoints in executor worker
     processes; the run adopts the winner's selected policy without training again. Resuming a
     race interrupted after one candidate finished trains only the other one (from its own
     checkpoint), and the race is decided again."""

@@ -59,7 +59,10 @@ def _zoo_train(tmp_path: Path, algo: str, env_id: str, conf: str, *extra: str) -
     return run
 
 
-@pytest.mark.parametrize("env_id", ["LunarSoftLanding-v0", "LunarPinpointLanding-v2"])
+# The planar case is ``slow``; its quick twin is the pinpoint case (the same wrapper with
+# more of it used: the curriculum's extremal pool, the features and the shaping).
+@pytest.mark.parametrize("env_id", [pytest.param("LunarSoftLanding-v0", marks=pytest.mark.slow),
+                                    "LunarPinpointLanding-v2"])
 def test_rl_zoo_trains_ppo_with_the_shipped_quick_file(tmp_path, env_id):
     run = _zoo_train(tmp_path, "ppo", env_id, "agents/hyperparams/zoo/ppo_quick.yml",
                      "-n", "2048")
