@@ -59,7 +59,8 @@ ALGOS = ("ppo", "sac", "td3")
 PROFILE_SEPARATOR = "@"
 #: keys consumed by the training script itself, not passed to the algorithm constructor
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "noise_type", "noise_std",
-            "env_kwargs", "curriculum", "obs_features", "reward_shaping", "critic_warmup_steps",
+            "env_kwargs", "curriculum", "error_curriculum", "obs_features", "reward_shaping",
+            "critic_warmup_steps",
             "select_checkpoint", "seed_race")
 #: keys of earlier versions, refused with the reason they were removed
 REMOVED_KEYS = {

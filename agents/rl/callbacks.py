@@ -192,6 +192,11 @@ class EpisodeInfoCallback(BaseCallback):
                 parts.append(f"from dispersion {100 * np.mean(c['dispersed_success']):.1f} %"
                              f" of {len(c['dispersed_success'])}")
             parts.append(f"curriculum p {cur.current_prob:.2f}")
+        from agents.rl.curriculum import ErrorScaleCurriculum
+
+        errors = find_wrapper(self.training_env, ErrorScaleCurriculum)
+        if errors is not None:
+            parts.append(f"errors × {errors.current_scale:.2f}")
         parts.append(f"{time.perf_counter() - self._t0:.0f} s")
         for v in c.values():
             v.clear()

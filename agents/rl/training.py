@@ -48,7 +48,8 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
                       env_kwargs: dict[str, Any] | None = None,
                       curriculum: dict[str, Any] | None = None, total_timesteps: int = 0,
                       progress: bool = True, obs_features: list[str] | None = None,
-                      reward_shaping: dict[str, Any] | None = None, gamma: float = 0.99):
+                      reward_shaping: dict[str, Any] | None = None, gamma: float = 0.99,
+                      error_curriculum: dict[str, Any] | None = None):
     """Build the SB3 ``VecEnv`` to train on (no normalisation wrapper).
 
     Our env ids go through the natively batched vector env (:func:`agents.common.vec_env.
@@ -58,7 +59,9 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
     :mod:`agents.common.features`) appends derived features to the observations
     (:class:`agents.common.features.ObsFeatureWrapper`, outside the curriculum); ``reward_shaping``
     (YAML mapping) adds the potential-based shaping of :class:`agents.rl.shaping.PotentialShaping`
-    with discount ``gamma`` (training only: evaluation measures landings, not rewards). Episode
+    with discount ``gamma`` (training only: evaluation measures landings, not rewards);
+    ``error_curriculum`` (YAML mapping) anneals the env's uncertainty model in
+    (:class:`agents.rl.curriculum.ErrorScaleCurriculum`, inside the start curriculum). Episode
     statistics are recorded by ``VecMonitor`` when the adapter does not already (they show the
     shaped return when shaping is on).
     """
@@ -72,6 +75,11 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
         from agents.common.vec_env import make_sb3_vec_env
 
         venv = make_sb3_vec_env(env_id, n_envs, seed=seed, **env_kwargs)
+        if error_curriculum:
+            from agents.rl.curriculum import ErrorScaleCurriculum
+
+            venv = ErrorScaleCurriculum(venv, total_timesteps=total_timesteps,
+                                        **error_curriculum)
         if curriculum:
             from agents.rl.curriculum import OptimalStartCurriculum
 
@@ -87,8 +95,9 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
 
             venv = ObsFeatureWrapper(venv, obs_features)
     else:
-        if curriculum or obs_features or reward_shaping:
-            raise ValueError("curriculum, obs_features and reward_shaping are only available for "
+        if curriculum or obs_features or reward_shaping or error_curriculum:
+            raise ValueError("curriculum, error_curriculum, obs_features and reward_shaping are "
+                             "only available for "
                              "lunar_env ids, "
                              f"not {env_id!r}")
         venv = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
@@ -162,7 +171,8 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                              progress=not run.get("no_progress"),
                              obs_features=hp.get("obs_features"),
                              reward_shaping=hp.get("reward_shaping"),
-                             gamma=float(hp.get("gamma", 0.99)))
+                             gamma=float(hp.get("gamma", 0.99)),
+                             error_curriculum=hp.get("error_curriculum"))
     tb_dir = None if run.get("no_tensorboard") else str(run_dir / "tb")
 
     if resume:
@@ -238,11 +248,15 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         RolloutCheckpointCallback,
         find_wrapper,
     )
-    from agents.rl.curriculum import OptimalStartCurriculum
+    from agents.rl.curriculum import ErrorScaleCurriculum, OptimalStartCurriculum
 
     curriculum = find_wrapper(venv, OptimalStartCurriculum)
     if curriculum is not None:  # continue the annealing schedule where the run stopped
         curriculum.num_timesteps = model.num_timesteps
+    errors = find_wrapper(venv, ErrorScaleCurriculum)
+    if errors is not None:
+        errors.num_timesteps = model.num_timesteps
+        errors.apply()
     remaining = n_timesteps - model.num_timesteps
     t0 = time.perf_counter()
     steps0 = model.num_timesteps

@@ -217,6 +217,9 @@ def zoo_entry(hp: Mapping[str, Any]) -> dict[str, Any]:
     """One env id's Zoo hyperparameters from the project's (see the module docstring)."""
     out: dict[str, Any] = {}
     wrapper: dict[str, Any] = {}
+    if hp.get("error_curriculum"):
+        raise ValueError("error_curriculum is not available in RL Zoo files (its evaluation env "
+                         "chain has no stand-in for it); train that entry with python train.py")
     for k, v in hp.items():
         if k in LEFT_OUT_KEYS:
             continue

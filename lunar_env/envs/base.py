@@ -178,6 +178,41 @@ class _TaskDescription:
         map; see the task's :meth:`~lunar_env.envs.task.LandingTask.observation_quantities`)."""
         return self._task.observation_quantities(obs)
 
+    @property
+    def error_scale(self) -> float:
+        """The factor on every σ of the env's uncertainty model now flown (1 unless
+        :meth:`set_error_scale` changed it)."""
+        return float(getattr(self, "_error_scale", 1.0))
+
+    def set_error_scale(self, scale: float) -> None:
+        """Fly the env's uncertainty model with every σ multiplied by ``scale`` >= 0
+        (:meth:`~lunar_env.uncertainty.UncertaintyModel.scaled`: the same standard normals, so
+        an episode's errors are ``scale`` times those it draws at 1): the errors of every
+        episode that starts from now on, and the navigation noise of every lander from its next
+        decision on (an episode under way keeps the entry, plant and bias errors it drew). For
+        a training curriculum over the errors (:class:`agents.rl.curriculum.
+        ErrorScaleCurriculum`); the task is rebuilt, never changed in place (tasks are frozen).
+
+        Raises
+        ------
+        ValueError
+            ``scale`` is not finite and >= 0, or the env was made without an uncertainty model.
+        """
+        from ..validation import require_finite
+
+        require_finite("scale", scale)
+        scale = float(scale)
+        if scale < 0.0:
+            raise ValueError(f"scale = {scale!r} must be >= 0")
+        if not self._batch.uncertain:
+            raise ValueError("set_error_scale needs an env with an uncertainty model; make it "
+                             "with uncertainty=... (a set name, an UncertaintyModel or a dict)")
+        base = unc.resolve_uncertainty(self._task_kwargs.get("uncertainty"))
+        self._task = self._task_cls(**{**self._task_kwargs, "uncertainty": base.scaled(scale)})
+        self._batch.task = self._task
+        self._batch.uncertainty = self._task.uncertainty
+        self._error_scale = scale
+
     def physical_constants(self) -> dict[str, float]:
         """SI constants of the lander and body (see the task's
         :meth:`~lunar_env.envs.task.LandingTask.physical_constants`)."""
@@ -195,6 +230,7 @@ class LanderEnv(_TaskDescription, gym.Env):
             raise ValueError(f"render_mode={render_mode!r} is not supported; use one of "
                              f"{self.metadata['render_modes']} or None")
         self.render_mode = render_mode
+        self._task_kwargs = dict(task_kwargs)
         self._task = self._task_cls(**task_kwargs)
         self.scenario = self._task.scenario
         self.action_space = self._task.action_space
@@ -360,6 +396,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         task_kwargs.pop("render_mode", None)
         task_kwargs.pop("max_episode_steps", None)
         self.num_envs = int(num_envs)
+        self._task_kwargs = dict(task_kwargs)
         self._task = self._task_cls(**task_kwargs)
         self.scenario = self._task.scenario
         self.single_action_space = self._task.action_space

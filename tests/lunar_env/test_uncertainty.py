@@ -360,3 +360,58 @@ def test_check_env_under_the_standard_set(env_id):
     n_state = v.unwrapped.task.model.n_state
     assert info["navigation_state_nd"].shape == info["state_nd"].shape == (3, n_state)
     assert not np.array_equal(info["navigation_state_nd"], info["state_nd"])
+
+
+@pytest.mark.parametrize("env_id", ["LunarSoftLanding-v0", "LunarPinpointLanding-v2"])
+def test_error_scale_multiplies_every_error_of_the_episodes_that_start_after_it(env_id):
+    """``set_error_scale(k)``: the next episodes' errors are k times those drawn at 1 (the
+    same normals), and so is the navigation noise; the single and the vector env agree."""
+    ref = gym.make_vec(env_id, 3, vectorization_mode="vector_entry_point",
+                       uncertainty="standard")
+    ref.reset(seed=11)
+    e1 = ref.unwrapped.episode_errors
+    nav1 = ref.unwrapped.navigation_state_nd - ref.unwrapped.state_nd
+    for k in (0.0, 0.5):
+        env = gym.make_vec(env_id, 3, vectorization_mode="vector_entry_point",
+                           uncertainty="standard")
+        core = env.unwrapped
+        assert core.error_scale == 1.0
+        core.set_error_scale(k)
+        assert core.error_scale == k and core.task.uncertainty == get_uncertainty(
+            "standard").scaled(k)
+        env.reset(seed=11)
+        ek = core.episode_errors
+        for f in ("entry_position_m", "entry_velocity_m_s", "misalignment_rad",
+                  "mass_error_kg", "nav_position_bias_m", "nav_velocity_bias_m_s"):
+            np.testing.assert_allclose(getattr(ek, f), k * getattr(e1, f), rtol=1e-12,
+                                       atol=1e-12, err_msg=f)
+        for f in ("thrust_scale", "isp_scale"):
+            np.testing.assert_allclose(getattr(ek, f) - 1.0, k * (getattr(e1, f) - 1.0),
+                                       rtol=1e-12, atol=1e-15, err_msg=f)
+        nav = core.navigation_state_nd - core.state_nd
+        # the same planned starts: the navigation offsets shrink with the scale (the radar
+        # weight depends on the true altitude, which the scaled entry error moves a little)
+        assert np.abs(nav).max() <= max(k, 1e-12) * 1.01 * np.abs(nav1).max()
+        if k == 0.0:  # no error at all: the env without the model, bit for bit
+            plain = gym.make_vec(env_id, 3, vectorization_mode="vector_entry_point")
+            obs0, _ = plain.reset(seed=11)
+            np.testing.assert_array_equal(core.observations(), obs0)
+            plain.close()
+        single = gym.make(env_id, uncertainty="standard").unwrapped
+        single.set_error_scale(k)
+        single.reset(seed=11)
+        np.testing.assert_array_equal(single.state_nd, core.state_nd[0])
+        np.testing.assert_array_equal(single.navigation_state_nd, core.navigation_state_nd[0])
+        env.close()
+    ref.close()
+
+
+def test_error_scale_refuses_bad_values_and_an_env_without_errors():
+    env = gym.make("LunarSoftLanding-v0", uncertainty="standard").unwrapped
+    for bad in (-0.1, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="scale"):
+            env.set_error_scale(bad)
+    assert env.error_scale == 1.0
+    plain = gym.make("LunarSoftLanding-v0").unwrapped
+    with pytest.raises(ValueError, match="uncertainty model"):
+        plain.set_error_scale(0.5)

@@ -65,3 +65,36 @@ def test_start_noise_perturbs_pinpoint_starts_off_the_optimal_trajectories():
         OptimalStartCurriculum(soft, 100, n_trajectories=2, progress=False,
                                start_noise={"position_m": 1.0})
     soft.close()
+
+
+def test_error_curriculum_anneals_the_uncertainty_in_and_then_flies_the_full_set():
+    from agents.rl.curriculum import ErrorScaleCurriculum
+
+    venv = make_sb3_vec_env("LunarSoftLanding-v0", 4, seed=0, dt_s=5.0, uncertainty="standard")
+    cur = ErrorScaleCurriculum(venv, total_timesteps=400, start_scale=0.2, anneal_fraction=0.5)
+    native = venv.native
+    assert cur.current_scale == pytest.approx(0.2) and native.error_scale == pytest.approx(0.2)
+    cur.reset()
+    scales = []
+    for _ in range(60):  # 240 env steps: the scale reaches 1 at step 200
+        cur.step(np.zeros((4, 1), dtype=np.float32))
+        scales.append(native.error_scale)
+    assert all(b >= a for a, b in zip(scales, scales[1:], strict=False))
+    assert scales[0] == pytest.approx(0.2 + 0.8 * 4 / 200, abs=ErrorScaleCurriculum.STEP)
+    assert native.error_scale == 1.0 and cur.current_scale == 1.0
+    cur.close()
+
+
+def test_error_curriculum_rejects_bad_arguments_and_an_env_without_errors():
+    from agents.rl.curriculum import ErrorScaleCurriculum
+
+    venv = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0, uncertainty="standard")
+    with pytest.raises(ValueError, match="start_scale"):
+        ErrorScaleCurriculum(venv, 100, start_scale=1.5)
+    with pytest.raises(ValueError, match="anneal_fraction"):
+        ErrorScaleCurriculum(venv, 100, anneal_fraction=0.0)
+    venv.close()
+    plain = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0)
+    with pytest.raises(ValueError, match="uncertainty"):
+        ErrorScaleCurriculum(plain, 100)
+    plain.close()

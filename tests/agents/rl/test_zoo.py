@@ -44,6 +44,8 @@ def test_zoo_entry_moves_project_keys_into_the_vec_env_wrapper():
     assert kw["gamma"] == 0.99 and kw["total_timesteps"] == 1000
     with pytest.raises(ValueError, match="activation_fn='swish'"):
         zoo_entry({"policy_kwargs": {"activation_fn": "swish"}})
+    with pytest.raises(ValueError, match="error_curriculum is not available"):
+        zoo_entry({"error_curriculum": {"start_scale": 0.0}})
 
 
 def _zoo_train(tmp_path: Path, algo: str, env_id: str, conf: str, *extra: str) -> Path:
