@@ -203,15 +203,13 @@ class ErrorScaleCurriculum(VecEnvWrapper):
             raise ValueError(f"start_scale={start_scale!r} must be in [0, 1]")
         if not (0.0 < anneal_fraction <= 1.0):
             raise ValueError(f"anneal_fraction={anneal_fraction!r} must be in (0, 1]")
-        if not native._batch.uncertain:
-            raise ValueError("error_curriculum needs env_kwargs.uncertainty (e.g. 'standard'): "
-                             "this env flies without errors")
         self.native = native
         self.total_timesteps = int(total_timesteps)
         self.start_scale = float(start_scale)
         self.anneal_fraction = float(anneal_fraction)
         self.num_timesteps = 0
-        self.apply()
+        # always set once: the env refuses it (by name) when it flies without errors
+        native.set_error_scale(self.current_scale)
 
     @property
     def current_scale(self) -> float:

@@ -182,7 +182,7 @@ class _TaskDescription:
     def error_scale(self) -> float:
         """The factor on every σ of the env's uncertainty model now flown (1 unless
         :meth:`set_error_scale` changed it)."""
-        return float(getattr(self, "_error_scale", 1.0))
+        return self._error_scale
 
     def set_error_scale(self, scale: float) -> None:
         """Fly the env's uncertainty model with every σ multiplied by ``scale`` >= 0
@@ -198,12 +198,11 @@ class _TaskDescription:
         ValueError
             ``scale`` is not finite and >= 0, or the env was made without an uncertainty model.
         """
-        from ..validation import require_finite
+        from ..validation import require_number
 
-        require_finite("scale", scale)
-        scale = float(scale)
-        if scale < 0.0:
-            raise ValueError(f"scale = {scale!r} must be >= 0")
+        scale = require_number("scale", scale)
+        if not (math.isfinite(scale) and scale >= 0.0):
+            raise ValueError(f"scale = {scale!r} must be a finite number >= 0")
         if not self._batch.uncertain:
             raise ValueError("set_error_scale needs an env with an uncertainty model; make it "
                              "with uncertainty=... (a set name, an UncertaintyModel or a dict)")
@@ -231,6 +230,7 @@ class LanderEnv(_TaskDescription, gym.Env):
                              f"{self.metadata['render_modes']} or None")
         self.render_mode = render_mode
         self._task_kwargs = dict(task_kwargs)
+        self._error_scale = 1.0  # see set_error_scale
         self._task = self._task_cls(**task_kwargs)
         self.scenario = self._task.scenario
         self.action_space = self._task.action_space
@@ -397,6 +397,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         task_kwargs.pop("max_episode_steps", None)
         self.num_envs = int(num_envs)
         self._task_kwargs = dict(task_kwargs)
+        self._error_scale = 1.0  # see set_error_scale
         self._task = self._task_cls(**task_kwargs)
         self.scenario = self._task.scenario
         self.single_action_space = self._task.action_space
