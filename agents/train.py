@@ -103,7 +103,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="continue the run in RUN_DIR from its newest checkpoint")
     p.add_argument("--init-from", default=None, metavar="MODEL",
                    help="start a new run from this model's policy weights (run dir or .zip, "
-                        "e.g. a behaviour-cloning run of agents.imitation)")
+                        "e.g. a behaviour-cloning run of agents.imitation) and its "
+                        "VecNormalize statistics; to keep those fixed, as a fine-tuned policy "
+                        "needs, set normalize.update=false")
     p.add_argument("--save-freq", type=int, default=None,
                    help="checkpoint every this many env steps (default: n_timesteps/20)")
     p.add_argument("--device", default="cpu", help="torch device (default: cpu)")

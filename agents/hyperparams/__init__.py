@@ -26,7 +26,9 @@ Python objects are given by name and resolved from a fixed table:
 - ``policy_kwargs.optimizer_class``: ``adam``, ``adamw``, ``rmsprop``, ``sgd``;
 - ``learning_rate`` / ``clip_range``: a number, or ``lin_<number>`` for a schedule decaying
   linearly from the number to 0 (the Zoo's spelling);
-- ``normalize``: ``true``/``false`` or a mapping of ``VecNormalize`` keyword arguments;
+- ``normalize``: ``true``/``false`` or a mapping of ``VecNormalize`` keyword arguments, plus
+  our ``update: false``, which keeps the statistics where they start (those of ``--init-from``
+  or of the checkpoint) instead of updating them every step;
 - ``noise_type`` (``normal`` or ``ornstein-uhlenbeck``) and ``noise_std`` for SAC/TD3 action
   noise, as in the Zoo.
 

@@ -27,7 +27,8 @@ from agents.common.actor import actor_parameters
 from agents.common.runs import save_model_atomic, save_vecnormalize_atomic, write_text_atomic
 
 __all__ = ["EPISODE_INFO_KEYS", "CriticWarmupCallback", "EpisodeInfoCallback",
-           "RolloutCheckpointCallback", "find_wrapper"]
+           "RolloutCheckpointCallback", "error_curriculum_of", "error_scale_state_path",
+           "find_wrapper"]
 
 #: info keys averaged over finished episodes and written to TensorBoard under ``episode/``
 EPISODE_INFO_KEYS = ("fuel_used_kg", "touchdown_speed_m_s", "miss_distance_m")
@@ -48,6 +49,21 @@ def find_wrapper(venv, wrapper_type: type[W]) -> W | None:
     return None
 
 
+def error_curriculum_of(venv):
+    """The :class:`agents.rl.curriculum.ErrorScaleCurriculum` in ``venv``'s chain, or None."""
+    from agents.rl.curriculum import ErrorScaleCurriculum
+
+    return find_wrapper(venv, ErrorScaleCurriculum)
+
+
+def error_scale_state_path(checkpoint: str | Path) -> Path:
+    """Where :class:`RolloutCheckpointCallback` saves the error curriculum's state next to the
+    checkpoint ``.../rl_model_<steps>_steps.zip``."""
+    checkpoint = Path(checkpoint)
+    steps = checkpoint.stem.removeprefix("rl_model_")
+    return checkpoint.with_name(f"rl_model_error_scale_{steps}.yml")
+
+
 class RolloutCheckpointCallback(CheckpointCallback):
     """``CheckpointCallback`` that saves between rollouts, every ``save_freq`` env steps.
 
@@ -57,7 +73,9 @@ class RolloutCheckpointCallback(CheckpointCallback):
     issue 18, found by the kill-and-resume test). A resumed run therefore restarts from a state
     where every counted step has been trained on exactly once. The ``VecNormalize`` statistics,
     the replay buffer (off-policy) and ``config`` (as ``checkpoints/config.yml``, once) are saved
-    alongside; the model file is written last, so a model file implies a complete checkpoint.
+    alongside, and the success-driven error scale (:class:`agents.rl.curriculum.
+    ErrorScaleCurriculum`, as ``rl_model_error_scale_<steps>_steps.yml``) when there is one; the
+    model file is written last, so a model file implies a complete checkpoint.
 
     Parameters
     ----------
@@ -119,6 +137,11 @@ class RolloutCheckpointCallback(CheckpointCallback):
         vn = self.model.get_vec_normalize_env()
         if vn is not None:
             save_vecnormalize_atomic(vn, self._checkpoint_path("vecnormalize_", "pkl"))
+        errors = error_curriculum_of(self.training_env)
+        if errors is not None and errors.success_threshold is not None:
+            # the success-driven error scale cannot be recomputed from the step count
+            write_text_atomic(self._checkpoint_path("error_scale_", "yml"),
+                              yaml.safe_dump(errors.state_dict()))
         if getattr(self.model, "replay_buffer", None) is not None:
             rb = Path(self._checkpoint_path("replay_buffer_", "pkl"))
             tmp = rb.with_name(f".{rb.name}.tmp.pkl")
@@ -192,9 +215,7 @@ class EpisodeInfoCallback(BaseCallback):
                 parts.append(f"from dispersion {100 * np.mean(c['dispersed_success']):.1f} %"
                              f" of {len(c['dispersed_success'])}")
             parts.append(f"curriculum p {cur.current_prob:.2f}")
-        from agents.rl.curriculum import ErrorScaleCurriculum
-
-        errors = find_wrapper(self.training_env, ErrorScaleCurriculum)
+        errors = error_curriculum_of(self.training_env)
         if errors is not None:
             parts.append(f"errors × {errors.current_scale:.2f}")
         parts.append(f"{time.perf_counter() - self._t0:.0f} s")
@@ -224,6 +245,9 @@ class EpisodeInfoCallback(BaseCallback):
         cur = self._curriculum()
         if cur is not None:
             self.logger.record("curriculum/start_prob", cur.current_prob)
+        errors = error_curriculum_of(self.training_env)
+        if errors is not None:
+            self.logger.record("curriculum/error_scale", errors.current_scale)
         for k, vals in self._acc.items():
             if vals:
                 self.logger.record(f"episode/{k}", float(np.mean(vals)))

@@ -170,30 +170,54 @@ class OptimalStartCurriculum(VecEnvWrapper):
 
 class ErrorScaleCurriculum(VecEnvWrapper):
     """Anneal the env's plant and navigation errors in: every σ of its uncertainty model is
-    multiplied by a scale that grows linearly from ``start_scale`` to 1 over the first
-    ``anneal_fraction`` of training (:meth:`lunar_env.envs.base.LanderVectorEnv.
-    set_error_scale`), then stays at 1, so the end of training and every evaluation fly the
-    full model.
+    multiplied by a scale (:meth:`lunar_env.envs.base.LanderVectorEnv.set_error_scale`) that
+    grows from ``start_scale`` to 1, so the end of training and every evaluation fly the full
+    model.
+
+    Two schedules, and their maximum when both are given:
+
+    - **by step count** (the default): the scale grows linearly from ``start_scale`` to 1 over
+      the first ``anneal_fraction`` of training, then stays at 1;
+    - **by success** (``success_threshold`` set): the scale starts at ``start_scale`` and
+      rises by ``scale_step`` each time ``window_episodes`` training episodes in a row (all
+      finished episodes, curriculum starts included) have landed at a rate of at least
+      ``success_threshold``; a window that lands less leaves it where it is (it never falls).
+      The step-count schedule stays as a floor, so a policy that stops improving still meets
+      the full model by ``anneal_fraction``; ``anneal_fraction: None`` removes the floor (the
+      scale then ends wherever the policy's landings took it, and :attr:`current_scale` at
+      the end says how far that was).
 
     Why: under the full ``standard`` set a pinpoint policy that has not yet learnt to land
     almost never reaches the gate slowly enough to meet the success bonus (two seeds of the
     shipped entry trained under it landed 0 of 100 cases, even without errors;
     ``docs/notes/issue-31.md``); with smaller errors first, the policy learns the landing and
-    then its margins, as the start curriculum teaches the endgame first.
+    then its margins, as the start curriculum teaches the endgame first. The step-count
+    schedule can outrun the policy (a seed that landed 5.6 % of its training episodes at ×0.6
+    lost them all by ×1): the success schedule raises the errors only as fast as the policy
+    keeps landing.
 
     :param venv: a vector env whose innermost env is the native
         :class:`~lunar_env.envs.base.LanderVectorEnv` with an uncertainty model (reached as
         ``venv.native``).
     :param total_timesteps: the training length the schedule refers to.
     :param start_scale: the scale at step 0, in [0, 1].
-    :param anneal_fraction: the share of training, in (0, 1], after which the scale is 1.
+    :param anneal_fraction: the share of training, in (0, 1], after which the scale is 1;
+        ``None`` (only with ``success_threshold``): no step-count schedule.
+    :param success_threshold: ``None`` (step count only) or the training success rate, in
+        (0, 1], a window must reach for the scale to rise.
+    :param scale_step: the rise per successful window, in (0, 1].
+    :param window_episodes: finished episodes per window, >= 1.
+
+    The success schedule's state (:meth:`state_dict`) is saved with every checkpoint and
+    restored by ``--resume`` (:func:`agents.rl.training.train`).
     """
 
     #: the scale is re-applied when it has moved by this much (each change rebuilds the task)
     STEP = 0.01
 
     def __init__(self, venv, total_timesteps: int, start_scale: float = 0.0,
-                 anneal_fraction: float = 0.5) -> None:
+                 anneal_fraction: float | None = 0.5, success_threshold: float | None = None,
+                 scale_step: float = 0.05, window_episodes: int = 1000) -> None:
         super().__init__(venv)
         native = getattr(venv, "native", None)
         if native is None or not hasattr(native, "set_error_scale"):
@@ -201,21 +225,46 @@ class ErrorScaleCurriculum(VecEnvWrapper):
                             "(agents.common.vec_env.make_sb3_vec_env)")
         if not (0.0 <= start_scale <= 1.0):
             raise ValueError(f"start_scale={start_scale!r} must be in [0, 1]")
-        if not (0.0 < anneal_fraction <= 1.0):
-            raise ValueError(f"anneal_fraction={anneal_fraction!r} must be in (0, 1]")
+        if success_threshold is not None and not (0.0 < success_threshold <= 1.0):
+            raise ValueError(f"success_threshold={success_threshold!r} must be None or in (0, 1]")
+        if anneal_fraction is None:
+            if success_threshold is None:
+                raise ValueError("anneal_fraction=None (no step-count schedule) needs a "
+                                 "success_threshold: the scale would never move")
+        elif not (0.0 < anneal_fraction <= 1.0):
+            raise ValueError(f"anneal_fraction={anneal_fraction!r} must be in (0, 1] or None")
+        if not (0.0 < scale_step <= 1.0):
+            raise ValueError(f"scale_step={scale_step!r} must be in (0, 1]")
+        if int(window_episodes) != window_episodes or window_episodes < 1:
+            raise ValueError(f"window_episodes={window_episodes!r} must be an integer >= 1")
         self.native = native
         self.total_timesteps = int(total_timesteps)
         self.start_scale = float(start_scale)
-        self.anneal_fraction = float(anneal_fraction)
+        self.anneal_fraction = None if anneal_fraction is None else float(anneal_fraction)
+        self.success_threshold = None if success_threshold is None else float(success_threshold)
+        self.scale_step = float(scale_step)
+        self.window_episodes = int(window_episodes)
         self.num_timesteps = 0
+        self.success_scale = self.start_scale
+        self._window: list[bool] = []
         # always set once: the env refuses it (by name) when it flies without errors
         native.set_error_scale(self.current_scale)
 
     @property
-    def current_scale(self) -> float:
-        """The error scale at the current training step."""
+    def step_scale(self) -> float:
+        """The step-count schedule's scale at the current training step (``start_scale``
+        without one)."""
+        if self.anneal_fraction is None:
+            return self.start_scale
         frac = self.num_timesteps / max(self.total_timesteps * self.anneal_fraction, 1.0)
         return min(1.0, self.start_scale + (1.0 - self.start_scale) * frac)
+
+    @property
+    def current_scale(self) -> float:
+        """The error scale at the current training step (the larger of the two schedules)."""
+        if self.success_threshold is None:
+            return self.step_scale
+        return max(self.step_scale, self.success_scale)
 
     def apply(self) -> None:
         """Set the env's error scale to :attr:`current_scale` if it moved by :attr:`STEP` (or
@@ -224,11 +273,38 @@ class ErrorScaleCurriculum(VecEnvWrapper):
         if abs(k - self.native.error_scale) >= self.STEP or (k == 1.0 != self.native.error_scale):
             self.native.set_error_scale(k)
 
+    def record_episodes(self, successes) -> None:
+        """Count finished episodes' verdicts for the success schedule (no-op without it)."""
+        if self.success_threshold is None:
+            return
+        for ok in successes:
+            self._window.append(bool(ok))
+            if len(self._window) >= self.window_episodes:
+                if np.mean(self._window) >= self.success_threshold:
+                    self.success_scale = min(1.0, self.success_scale + self.scale_step)
+                self._window.clear()
+
+    def state_dict(self) -> dict[str, Any]:
+        """The success schedule's state (plain YAML types), for checkpoints."""
+        return {"success_scale": float(self.success_scale),
+                "window": [bool(x) for x in self._window]}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` (a resumed run), then apply the scale."""
+        scale = float(state["success_scale"])
+        if not (0.0 <= scale <= 1.0):
+            raise ValueError(f"success_scale={scale!r} in the saved state must be in [0, 1]")
+        self.success_scale = scale
+        self._window = [bool(x) for x in state.get("window", [])]
+        self.apply()
+
     def reset(self) -> np.ndarray:
         return self.venv.reset()
 
     def step_wait(self):
-        out = self.venv.step_wait()
+        obs, rew, done, infos = self.venv.step_wait()
         self.num_timesteps += self.num_envs
+        if done.any():
+            self.record_episodes(bool(infos[i].get("is_success")) for i in np.flatnonzero(done))
         self.apply()
-        return out
+        return obs, rew, done, infos

@@ -77,7 +77,11 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
         venv = make_sb3_vec_env(env_id, n_envs, seed=seed, **env_kwargs)
         if error_curriculum:
             from agents.rl.curriculum import ErrorScaleCurriculum
+            from lunar_env.validation import require_option_keys
 
+            require_option_keys("error_curriculum", error_curriculum,
+                                ("start_scale", "anneal_fraction", "success_threshold",
+                                 "scale_step", "window_episodes"))
             venv = ErrorScaleCurriculum(venv, total_timesteps=total_timesteps,
                                         **error_curriculum)
         if curriculum:
@@ -110,18 +114,40 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
 
 
 def _normalize_kwargs(normalize: Any, gamma: float | None) -> dict[str, Any] | None:
+    """``VecNormalize`` arguments of a ``normalize`` entry (None: no normalisation); the entry's
+    own key ``update`` (:func:`_normalize_updates`) is not one of them."""
     if normalize in (None, False):
         return None
     if normalize is True:
         kw: dict[str, Any] = {}
     elif isinstance(normalize, dict):
         kw = dict(normalize)
+        kw.pop("update", None)
     else:
         raise ValueError(f"normalize={normalize!r}: expected true/false or a mapping of "
                          "VecNormalize arguments")
     if gamma is not None:
         kw.setdefault("gamma", gamma)
     return kw
+
+
+def _normalize_updates(normalize: Any) -> bool:
+    """``normalize: {update: false}`` keeps the observation and reward statistics where they
+    start (loaded from ``--init-from`` or a checkpoint) instead of updating them with every
+    step (SB3's ``VecNormalize.training``).
+
+    Why: a policy's weights are fit to its input statistics. Fine-tuning the nominal pinpoint
+    policy (``--init-from``), its statistics kept updating on the new run's observations
+    (dispersed starts only, where the nominal run had also started from optimal trajectories)
+    and the training success of the *unchanged* policy (learning rate 0) fell from 93 to
+    53 % in 0.66e6 steps (docs/notes/issue-31.md, fifth session).
+    """
+    if isinstance(normalize, dict):
+        update = normalize.get("update", True)
+        if not isinstance(update, bool):
+            raise ValueError(f"normalize.update={update!r}: expected true or false")
+        return update
+    return True
 
 
 def _select_final(model, run_dir: Path, run: dict[str, Any], hp: dict[str, Any],
@@ -181,7 +207,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             run_dir, needs_vecnormalize=bool(hp.get("normalize")))
         if vn_path is not None:
             venv = VecNormalize.load(str(vn_path), venv)
-            venv.training = True
+            venv.training = _normalize_updates(hp.get("normalize"))
         model = algo_class(algo).load(ckpt, env=venv, device=run.get("device", "cpu"),
                                        tensorboard_log=tb_dir)
         model.verbose = int(run.get("verbose", 0))  # the console of this session
@@ -209,10 +235,11 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                       "norm_obs is off (the initial policy expects raw observations)")
             if norm_kw is not None and init_vn is not None:
                 venv = VecNormalize.load(str(init_vn), venv)
-                venv.training = True
+                venv.training = _normalize_updates(hp.get("normalize"))
                 norm_kw = None
         if norm_kw is not None:
             venv = VecNormalize(venv, **norm_kw)
+            venv.training = _normalize_updates(hp.get("normalize"))
         kwargs = resolve_algo_kwargs(hp, algo, n_actions=int(np.prod(venv.action_space.shape)))
         if init is not None:
             from agents.common.features import StandardizedInputs
@@ -246,6 +273,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         CriticWarmupCallback,
         EpisodeInfoCallback,
         RolloutCheckpointCallback,
+        error_scale_state_path,
         find_wrapper,
     )
     from agents.rl.curriculum import ErrorScaleCurriculum, OptimalStartCurriculum
@@ -257,6 +285,12 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     if errors is not None:
         errors.num_timesteps = model.num_timesteps
         errors.apply()
+        if resume and errors.success_threshold is not None:
+            state = error_scale_state_path(ckpt)
+            if not state.exists():
+                raise FileNotFoundError(f"{state}: the success-driven error scale of checkpoint "
+                                        f"{ckpt} is missing; cannot resume its schedule")
+            errors.load_state_dict(yaml.safe_load(state.read_text()))
     remaining = n_timesteps - model.num_timesteps
     t0 = time.perf_counter()
     steps0 = model.num_timesteps

@@ -220,6 +220,10 @@ def zoo_entry(hp: Mapping[str, Any]) -> dict[str, Any]:
     if hp.get("error_curriculum"):
         raise ValueError("error_curriculum is not available in RL Zoo files (its evaluation env "
                          "chain has no stand-in for it); train that entry with python train.py")
+    norm = hp.get("normalize")
+    if isinstance(norm, Mapping) and "update" in norm:
+        raise ValueError("normalize.update is not a VecNormalize argument, and the Zoo cannot "
+                         "keep loaded statistics fixed; train that entry with python train.py")
     for k, v in hp.items():
         if k in LEFT_OUT_KEYS:
             continue

@@ -158,3 +158,93 @@ def test_evaluation_is_deterministic_and_cases_do_not_depend_on_batch(tmp_path):
     md = markdown_table(rep)
     assert "PPO-untrained" in md
     assert np.isfinite(rep["optimum"]["fuel_mean_kg"])
+
+
+def test_resume_restores_the_success_driven_error_scale(tmp_path):
+    """The success schedule of the error curriculum cannot be recomputed from the step count:
+    each checkpoint saves it and --resume restores it (and refuses a checkpoint without it)."""
+    from agents.rl.callbacks import error_curriculum_of, error_scale_state_path
+
+    run_dir = tmp_path / "run"
+    parser = tr.build_parser()
+    args = parser.parse_args([
+        *QUICK, "--seed", "1", "--run-dir", str(run_dir), "-n", "3072", "--save-freq", "512",
+        "--no-eval", "--no-tensorboard", "--hyperparams", "env_kwargs.uncertainty=standard",
+        "error_curriculum={start_scale: 0.0, anneal_fraction: 1.0, success_threshold: 0.9, "
+        "window_episodes: 100}"])
+    hp, run = tr._resolve_args(args)
+    run_dir.mkdir()
+    (run_dir / "config.yml").write_text(yaml.safe_dump(hp))
+    (run_dir / "args.yml").write_text(yaml.safe_dump(run))
+
+    class SetScale(BaseCallback):  # as if the policy had landed enough windows
+        def _on_step(self) -> bool:
+            errors = error_curriculum_of(self.training_env)
+            errors.success_scale = 0.75
+            errors._window = [True, False]
+            return True
+
+    class Seen(BaseCallback):
+        def _on_training_start(self) -> None:
+            errors = error_curriculum_of(self.training_env)
+            self.state = errors.state_dict()
+            self.applied = errors.native.error_scale
+
+        def _on_step(self) -> bool:
+            return True
+
+    rollout_steps = hp["n_envs"] * hp["n_steps"]
+    with pytest.raises(KeyboardInterrupt):
+        tr.train(hp, run, run_dir, callbacks=[SetScale(), _InterruptAt(rollout_steps + 8)])
+    ckpt, steps = latest_checkpoint(run_dir)
+    saved = yaml.safe_load(error_scale_state_path(ckpt).read_text())
+    assert saved == {"success_scale": 0.75, "window": [True, False]}
+    seen = Seen()
+    tr.train(hp, run, run_dir, resume=True, callbacks=[seen])
+    assert seen.state["success_scale"] == 0.75 and seen.applied == pytest.approx(0.75)
+    # a checkpoint without the state cannot resume the schedule
+    ckpt, _ = latest_checkpoint(run_dir)
+    hp["n_timesteps"] = 4096
+    error_scale_state_path(ckpt).unlink()
+    with pytest.raises(FileNotFoundError, match="success-driven error scale"):
+        tr.train(hp, run, run_dir, resume=True)
+
+
+def test_init_from_with_fixed_statistics_keeps_the_input_map(tmp_path):
+    """normalize: {update: false} keeps the observation and reward statistics loaded by
+    --init-from (also after --resume); by default they keep updating. (Issue 31: the nominal
+    pinpoint policy's own statistics, updated by a fine-tuning run, moved its inputs and its
+    training success fell from 93 to 53 % with a learning rate of 0.)"""
+    import pickle
+
+    def stats(path):
+        with open(path, "rb") as f:
+            vn = pickle.load(f)  # a VecNormalize without its env (what VecNormalize.load reads)
+        return vn.obs_rms.mean.copy(), vn.obs_rms.count, vn.ret_rms.var.copy()
+
+    base = tmp_path / "base"
+    assert tr.main([*QUICK, "--seed", "1", "--run-dir", str(base), "-n", "1024", "--no-eval",
+                    "--no-tensorboard"]) == 0
+    m0, n0, r0 = stats(base / "vecnormalize.pkl")
+    fixed, moving = tmp_path / "fixed", tmp_path / "moving"
+    assert tr.main([*QUICK, "--seed", "2", "--run-dir", str(fixed), "-n", "2048", "--no-eval",
+                    "--no-tensorboard", "--save-freq", "1024", "--init-from", str(base),
+                    "--hyperparams", "normalize.update=false"]) == 0
+    m1, n1, r1 = stats(fixed / "vecnormalize.pkl")
+    assert n1 == n0 and np.array_equal(m1, m0) and np.array_equal(r1, r0)
+    # resumed (and extended), the run still keeps them
+    hp = yaml.safe_load((fixed / "config.yml").read_text())
+    run = yaml.safe_load((fixed / "args.yml").read_text())
+    hp["n_timesteps"] = 3072
+    tr.train(hp, run, fixed, resume=True)
+    ckpt, steps = latest_checkpoint(fixed)
+    assert steps == 3072
+    assert np.array_equal(stats(ckpt.parent / f"rl_model_vecnormalize_{steps}_steps.pkl")[0], m0)
+    assert tr.main([*QUICK, "--seed", "2", "--run-dir", str(moving), "-n", "1024", "--no-eval",
+                    "--no-tensorboard", "--init-from", str(base)]) == 0
+    m2, n2, _r2 = stats(moving / "vecnormalize.pkl")
+    assert n2 > n0 and not np.array_equal(m2, m0)
+    from agents.rl.training import _normalize_updates
+
+    with pytest.raises(ValueError, match="normalize.update"):
+        _normalize_updates({"update": "no"})

@@ -98,3 +98,70 @@ def test_error_curriculum_rejects_bad_arguments_and_an_env_without_errors():
     with pytest.raises(ValueError, match="uncertainty"):
         ErrorScaleCurriculum(plain, 100)
     plain.close()
+
+
+def test_error_curriculum_by_success_rises_only_after_windows_that_land():
+    """The success schedule: +scale_step per window of window_episodes finished episodes that
+    landed at >= success_threshold, never down; the step-count schedule stays a floor."""
+    from agents.rl.curriculum import ErrorScaleCurriculum
+
+    venv = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0, dt_s=5.0, uncertainty="standard")
+    cur = ErrorScaleCurriculum(venv, total_timesteps=10_000, start_scale=0.0, anneal_fraction=1.0,
+                               success_threshold=0.5, scale_step=0.25, window_episodes=4)
+    native = venv.native
+    cur.record_episodes([True, False, True])          # window not full: nothing moves
+    assert cur.success_scale == 0.0
+    cur.record_episodes([False])                      # 2 of 4 = threshold: up one step
+    assert cur.success_scale == 0.25
+    cur.record_episodes([False, False, False, True])  # 1 of 4: stays (never falls)
+    assert cur.success_scale == 0.25
+    cur.record_episodes([True] * 20)                  # five windows: capped at 1
+    assert cur.success_scale == 1.0
+    cur.apply()
+    assert native.error_scale == 1.0
+    # the floor: without successes the step count alone brings the scale to 1 at the end
+    slow = ErrorScaleCurriculum(venv, total_timesteps=400, anneal_fraction=1.0,
+                                success_threshold=0.9, window_episodes=1)
+    slow.record_episodes([False] * 10)
+    slow.num_timesteps = 200
+    assert slow.success_scale == 0.0 and slow.current_scale == pytest.approx(0.5)
+    # no floor: the scale moves only with the landings
+    free = ErrorScaleCurriculum(venv, total_timesteps=400, anneal_fraction=None,
+                                success_threshold=0.9, window_episodes=1)
+    free.num_timesteps = 400
+    assert free.current_scale == 0.0
+    free.record_episodes([True])
+    assert free.current_scale == pytest.approx(0.05)
+    with pytest.raises(ValueError, match="needs a success_threshold"):
+        ErrorScaleCurriculum(venv, 400, anneal_fraction=None)
+    state = cur.state_dict()
+    slow.load_state_dict(state)
+    assert slow.success_scale == 1.0 and native.error_scale == 1.0
+    with pytest.raises(ValueError, match="success_scale"):
+        slow.load_state_dict({"success_scale": 1.5})
+    # the wrapper counts the verdicts of the episodes that end in step_wait
+    live = ErrorScaleCurriculum(venv, total_timesteps=10_000, success_threshold=0.5,
+                                window_episodes=1000)
+    live.reset()
+    n = 0
+    while n == 0:
+        _, _, done, _ = live.step(np.zeros((2, 1), dtype=np.float32))
+        n += int(done.sum())
+    assert len(live.state_dict()["window"]) == n
+    venv.close()
+    for bad, match in (({"success_threshold": 0.0}, "success_threshold"),
+                       ({"scale_step": 0.0}, "scale_step"),
+                       ({"window_episodes": 0}, "window_episodes"),
+                       ({"window_episodes": 2.5}, "window_episodes")):
+        v = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0, uncertainty="standard")
+        with pytest.raises(ValueError, match=match):
+            ErrorScaleCurriculum(v, 100, **bad)
+        v.close()
+
+
+def test_error_curriculum_entry_with_an_unknown_key_is_refused_by_name():
+    from agents.rl.training import make_training_env
+
+    with pytest.raises(ValueError, match=r"error_curriculum: unknown key\(s\) \['window'\]"):
+        make_training_env("LunarSoftLanding-v0", 2, 0, {"uncertainty": "standard"},
+                          error_curriculum={"window": 10}, total_timesteps=100)

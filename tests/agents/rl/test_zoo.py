@@ -46,6 +46,8 @@ def test_zoo_entry_moves_project_keys_into_the_vec_env_wrapper():
         zoo_entry({"policy_kwargs": {"activation_fn": "swish"}})
     with pytest.raises(ValueError, match="error_curriculum is not available"):
         zoo_entry({"error_curriculum": {"start_scale": 0.0}})
+    with pytest.raises(ValueError, match="normalize.update is not a VecNormalize argument"):
+        zoo_entry({"normalize": {"norm_obs": True, "update": False}})
 
 
 def _zoo_train(tmp_path: Path, algo: str, env_id: str, conf: str, *extra: str) -> Path:
