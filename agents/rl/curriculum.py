@@ -31,6 +31,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from agents.common.families import family_of
+from lunar_env.validation import require_integer
 
 __all__ = ["ErrorScaleCurriculum", "OptimalStartCurriculum", "optimal_start_pool"]
 
@@ -235,15 +236,13 @@ class ErrorScaleCurriculum(VecEnvWrapper):
             raise ValueError(f"anneal_fraction={anneal_fraction!r} must be in (0, 1] or None")
         if not (0.0 < scale_step <= 1.0):
             raise ValueError(f"scale_step={scale_step!r} must be in (0, 1]")
-        if int(window_episodes) != window_episodes or window_episodes < 1:
-            raise ValueError(f"window_episodes={window_episodes!r} must be an integer >= 1")
         self.native = native
         self.total_timesteps = int(total_timesteps)
         self.start_scale = float(start_scale)
         self.anneal_fraction = None if anneal_fraction is None else float(anneal_fraction)
         self.success_threshold = None if success_threshold is None else float(success_threshold)
         self.scale_step = float(scale_step)
-        self.window_episodes = int(window_episodes)
+        self.window_episodes = require_integer("window_episodes", window_episodes, minimum=1)
         self.num_timesteps = 0
         self.success_scale = self.start_scale
         self._window: list[bool] = []

@@ -26,6 +26,7 @@ from agents.common.runs import (
     write_text_atomic,
 )
 from agents.hyperparams import resolve_algo_kwargs
+from lunar_env.validation import require_bool
 
 __all__ = ["train", "make_training_env", "DEFAULT_ENV_ID"]
 
@@ -143,10 +144,7 @@ def _normalize_updates(normalize: Any) -> bool:
     53 % in 0.66e6 steps (docs/notes/issue-31.md, fifth session).
     """
     if isinstance(normalize, dict):
-        update = normalize.get("update", True)
-        if not isinstance(update, bool):
-            raise ValueError(f"normalize.update={update!r}: expected true or false")
-        return update
+        return require_bool("normalize.update", normalize.get("update", True))
     return True
 
 
@@ -273,15 +271,16 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         CriticWarmupCallback,
         EpisodeInfoCallback,
         RolloutCheckpointCallback,
+        error_curriculum_of,
         error_scale_state_path,
         find_wrapper,
     )
-    from agents.rl.curriculum import ErrorScaleCurriculum, OptimalStartCurriculum
+    from agents.rl.curriculum import OptimalStartCurriculum
 
     curriculum = find_wrapper(venv, OptimalStartCurriculum)
     if curriculum is not None:  # continue the annealing schedule where the run stopped
         curriculum.num_timesteps = model.num_timesteps
-    errors = find_wrapper(venv, ErrorScaleCurriculum)
+    errors = error_curriculum_of(venv)
     if errors is not None:
         errors.num_timesteps = model.num_timesteps
         errors.apply()
