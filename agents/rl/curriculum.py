@@ -24,6 +24,7 @@ pool.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -31,7 +32,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from agents.common.families import family_of
-from lunar_env.validation import require_integer
+from lunar_env.validation import require_integer, require_number
 
 __all__ = ["ErrorScaleCurriculum", "OptimalStartCurriculum", "optimal_start_pool"]
 
@@ -172,21 +173,22 @@ class OptimalStartCurriculum(VecEnvWrapper):
 class ErrorScaleCurriculum(VecEnvWrapper):
     """Anneal the env's plant and navigation errors in: every σ of its uncertainty model is
     multiplied by a scale (:meth:`lunar_env.envs.base.LanderVectorEnv.set_error_scale`) that
-    grows from ``start_scale`` to 1, so the end of training and every evaluation fly the full
-    model.
+    grows from ``start_scale`` to ``final_scale`` (1 by default, so the end of training flies
+    the full model; above 1, training holds a margin over the model a campaign judges).
+    Evaluation envs are not wrapped: checkpoints are judged at the env's own model (× 1).
 
     Two schedules, and their maximum when both are given:
 
-    - **by step count** (the default): the scale grows linearly from ``start_scale`` to 1 over
-      the first ``anneal_fraction`` of training, then stays at 1;
+    - **by step count** (the default): the scale grows linearly from ``start_scale`` to
+      ``final_scale`` over the first ``anneal_fraction`` of training, then stays there;
     - **by success** (``success_threshold`` set): the scale starts at ``start_scale`` and
-      rises by ``scale_step`` each time ``window_episodes`` training episodes in a row (all
-      finished episodes, curriculum starts included) have landed at a rate of at least
-      ``success_threshold``; a window that lands less leaves it where it is (it never falls).
-      The step-count schedule stays as a floor, so a policy that stops improving still meets
-      the full model by ``anneal_fraction``; ``anneal_fraction: None`` removes the floor (the
-      scale then ends wherever the policy's landings took it, and :attr:`current_scale` at
-      the end says how far that was).
+      rises by ``scale_step`` (up to ``final_scale``) each time ``window_episodes`` training
+      episodes in a row (all finished episodes, curriculum starts included) have landed at a
+      rate of at least ``success_threshold``; a window that lands less leaves it where it is
+      (it never falls). The step-count schedule stays as a floor, so a policy that stops
+      improving still meets ``final_scale`` by ``anneal_fraction``; ``anneal_fraction:
+      None`` removes the floor (the scale then ends wherever the policy's landings took it,
+      and :attr:`current_scale` at the end says how far that was).
 
     Why: under the full ``standard`` set a pinpoint policy that has not yet learnt to land
     almost never reaches the gate slowly enough to meet the success bonus (two seeds of the
@@ -201,8 +203,10 @@ class ErrorScaleCurriculum(VecEnvWrapper):
         :class:`~lunar_env.envs.base.LanderVectorEnv` with an uncertainty model (reached as
         ``venv.native``).
     :param total_timesteps: the training length the schedule refers to.
-    :param start_scale: the scale at step 0, in [0, 1].
-    :param anneal_fraction: the share of training, in (0, 1], after which the scale is 1;
+    :param start_scale: the scale at step 0, in [0, ``final_scale``].
+    :param final_scale: the scale the schedules end at, > 0 (1: the env's own model).
+    :param anneal_fraction: the share of training, in (0, 1], after which the scale is
+        ``final_scale``;
         ``None`` (only with ``success_threshold``): no step-count schedule.
     :param success_threshold: ``None`` (step count only) or the training success rate, in
         (0, 1], a window must reach for the scale to rise.
@@ -218,14 +222,20 @@ class ErrorScaleCurriculum(VecEnvWrapper):
 
     def __init__(self, venv, total_timesteps: int, start_scale: float = 0.0,
                  anneal_fraction: float | None = 0.5, success_threshold: float | None = None,
-                 scale_step: float = 0.05, window_episodes: int = 1000) -> None:
+                 scale_step: float = 0.05, window_episodes: int = 1000,
+                 final_scale: float = 1.0) -> None:
         super().__init__(venv)
         native = getattr(venv, "native", None)
         if native is None or not hasattr(native, "set_error_scale"):
             raise TypeError("ErrorScaleCurriculum needs the native lunar_env vector env inside "
                             "(agents.common.vec_env.make_sb3_vec_env)")
-        if not (0.0 <= start_scale <= 1.0):
-            raise ValueError(f"start_scale={start_scale!r} must be in [0, 1]")
+        final_scale = require_number("final_scale", final_scale)
+        if not (math.isfinite(final_scale) and final_scale > 0.0):
+            raise ValueError(f"final_scale={final_scale!r} must be a finite number > 0")
+        start_scale = require_number("start_scale", start_scale)
+        if not (0.0 <= start_scale <= final_scale):
+            raise ValueError(f"start_scale={start_scale!r} must be in [0, final_scale="
+                             f"{final_scale!r}]")
         if success_threshold is not None and not (0.0 < success_threshold <= 1.0):
             raise ValueError(f"success_threshold={success_threshold!r} must be None or in (0, 1]")
         if anneal_fraction is None:
@@ -239,6 +249,7 @@ class ErrorScaleCurriculum(VecEnvWrapper):
         self.native = native
         self.total_timesteps = int(total_timesteps)
         self.start_scale = float(start_scale)
+        self.final_scale = float(final_scale)
         self.anneal_fraction = None if anneal_fraction is None else float(anneal_fraction)
         self.success_threshold = None if success_threshold is None else float(success_threshold)
         self.scale_step = float(scale_step)
@@ -256,7 +267,8 @@ class ErrorScaleCurriculum(VecEnvWrapper):
         if self.anneal_fraction is None:
             return self.start_scale
         frac = self.num_timesteps / max(self.total_timesteps * self.anneal_fraction, 1.0)
-        return min(1.0, self.start_scale + (1.0 - self.start_scale) * frac)
+        return min(self.final_scale,
+                   self.start_scale + (self.final_scale - self.start_scale) * frac)
 
     @property
     def current_scale(self) -> float:
@@ -267,9 +279,10 @@ class ErrorScaleCurriculum(VecEnvWrapper):
 
     def apply(self) -> None:
         """Set the env's error scale to :attr:`current_scale` if it moved by :attr:`STEP` (or
-        reached 1)."""
+        reached ``final_scale``)."""
         k = self.current_scale
-        if abs(k - self.native.error_scale) >= self.STEP or (k == 1.0 != self.native.error_scale):
+        if abs(k - self.native.error_scale) >= self.STEP or (
+                k == self.final_scale != self.native.error_scale):
             self.native.set_error_scale(k)
 
     def record_episodes(self, successes) -> None:
@@ -280,7 +293,8 @@ class ErrorScaleCurriculum(VecEnvWrapper):
             self._window.append(bool(ok))
             if len(self._window) >= self.window_episodes:
                 if np.mean(self._window) >= self.success_threshold:
-                    self.success_scale = min(1.0, self.success_scale + self.scale_step)
+                    self.success_scale = min(self.final_scale,
+                                             self.success_scale + self.scale_step)
                 self._window.clear()
 
     def state_dict(self) -> dict[str, Any]:
@@ -291,8 +305,9 @@ class ErrorScaleCurriculum(VecEnvWrapper):
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict` (a resumed run), then apply the scale."""
         scale = float(state["success_scale"])
-        if not (0.0 <= scale <= 1.0):
-            raise ValueError(f"success_scale={scale!r} in the saved state must be in [0, 1]")
+        if not (0.0 <= scale <= self.final_scale):
+            raise ValueError(f"success_scale={scale!r} in the saved state must be in "
+                             f"[0, final_scale={self.final_scale!r}]")
         self.success_scale = scale
         self._window = [bool(x) for x in state.get("window", [])]
         self.apply()

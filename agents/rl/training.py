@@ -81,8 +81,8 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
             from lunar_env.validation import require_option_keys
 
             require_option_keys("error_curriculum", error_curriculum,
-                                ("start_scale", "anneal_fraction", "success_threshold",
-                                 "scale_step", "window_episodes"))
+                                ("start_scale", "final_scale", "anneal_fraction",
+                                 "success_threshold", "scale_step", "window_episodes"))
             venv = ErrorScaleCurriculum(venv, total_timesteps=total_timesteps,
                                         **error_curriculum)
         if curriculum:

@@ -34,6 +34,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -132,8 +133,20 @@ class PinpointOptimum:
 
 # ----------------------------------------------------------------------------- problems
 
-#: problems built once per (kind, scenario fingerprint)
-_OCPS: dict[tuple[str, str], PinpointOCP] = {}
+#: problems built once per (kind, scenario fingerprint), the most recently used
+#: :data:`MAX_CACHED_OCPS` kept (a process solving many plants would otherwise keep them all,
+#: and with them their solvers' scenarios)
+_OCPS: OrderedDict[tuple[str, str], PinpointOCP] = OrderedDict()
+MAX_CACHED_OCPS = 16
+
+
+def _cached_ocp(key: tuple[str, str], build: Callable[[], PinpointOCP]) -> PinpointOCP:
+    if key not in _OCPS:
+        _OCPS[key] = build()
+    _OCPS.move_to_end(key)
+    while len(_OCPS) > MAX_CACHED_OCPS:
+        _OCPS.popitem(last=False)
+    return _OCPS[key]
 
 
 def scenario_fingerprint(scenario: PinpointScenario) -> str:
@@ -147,23 +160,20 @@ def env_ocp(scenario: PinpointScenario) -> PinpointOCP:
     gate sphere (the env ends an episode wherever the lander crosses it; [001]'s optimum may dip
     below 2 km mid-flight for dispersed starts, which the env scores as a crash) and
     :data:`GATE_CLEARANCE`. Built once per scenario fingerprint."""
-    key = ("env", scenario_fingerprint(scenario))
-    if key not in _OCPS:
-        _OCPS[key] = PinpointOCP(scenario, min_altitude_m=scenario.target.altitude_m,
-                                 **GATE_CLEARANCE)
-    return _OCPS[key]
+    return _cached_ocp(("env", scenario_fingerprint(scenario)),
+                       lambda: PinpointOCP(scenario, min_altitude_m=scenario.target.altitude_m,
+                                           **GATE_CLEARANCE))
 
 
 def replan_ocp(scenario: PinpointScenario) -> PinpointOCP:
     """The env's problem from a mid-flight state: :func:`env_ocp` with the final-time lower
     bound relaxed to 1 s ([001]'s 300 s bound is about the whole descent, not the time to go).
     Built once per scenario fingerprint."""
-    key = ("replan", scenario_fingerprint(scenario))
-    if key not in _OCPS:
+    def build() -> PinpointOCP:
         sc = dataclasses.replace(scenario, tf_bounds_s=(1.0, scenario.tf_bounds_s[1]))
-        _OCPS[key] = PinpointOCP(sc, min_altitude_m=scenario.target.altitude_m,
-                                 **GATE_CLEARANCE)
-    return _OCPS[key]
+        return PinpointOCP(sc, min_altitude_m=scenario.target.altitude_m, **GATE_CLEARANCE)
+
+    return _cached_ocp(("replan", scenario_fingerprint(scenario)), build)
 
 
 # ----------------------------------------------------------------------------- one case

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -273,11 +274,17 @@ def _result(ocp: PinpointOCP, ssol: ShootingSolution, gsol: GPMSolution | None, 
         control=ControlLaw(pp, s.time_s))
 
 
-_SOLVERS: dict[tuple, SerialSolver] = {}
+#: the most recently used solvers, at most :data:`MAX_CACHED_SOLVERS` (oldest evicted first)
+_SOLVERS: OrderedDict[tuple, SerialSolver] = OrderedDict()
+#: why a bound: a built pinpoint solver holds ~300 MB of CasADi NLPs, and a process that
+#: solves many plants (each plant is its own scenario, e.g. a campaign's true engines) kept
+#: every one: 52 plants grew a process to 14-17 GB (docs/notes/issue-31.md)
+MAX_CACHED_SOLVERS = 4
 
 
 def get_solver(problem="peng2012", **kwargs) -> SerialSolver:
-    """The process-wide :class:`SerialSolver` for ``problem`` and options (built once)."""
+    """The process-wide :class:`SerialSolver` for ``problem`` and options (built once, kept
+    while it is among the :data:`MAX_CACHED_SOLVERS` most recently used)."""
     return _solver(problem, **kwargs)
 
 
@@ -290,6 +297,9 @@ def _solver(problem, **kwargs) -> SerialSolver:
            getattr(problem, "floor_margin_range_m", 0.0), tuple(sorted(kwargs.items())))
     if key not in _SOLVERS or _SOLVERS[key].ocp.scenario is not sc:
         _SOLVERS[key] = SerialSolver(problem, **kwargs)
+    _SOLVERS.move_to_end(key)
+    while len(_SOLVERS) > MAX_CACHED_SOLVERS:
+        _SOLVERS.popitem(last=False)
     return _SOLVERS[key]
 
 

@@ -42,6 +42,29 @@ def test_problems_are_keyed_by_the_scenario_fingerprint():
     assert batch.env_ocp(dataclasses.replace(other)) is ocp
 
 
+def test_many_plants_keep_a_bounded_number_of_problems_and_solvers():
+    """Bug fixed (issue 31): every plant's problem and solver (~300 MB of CasADi NLPs once
+    built) stayed in the process-wide caches; 52 plants grew a process to 14-17 GB. Now the
+    most recently used are kept, the oldest evicted, and a fetch still returns the live one."""
+    from optimizers.transcription import serial
+
+    sc = get_scenario("peng2012")
+    plants = [dataclasses.replace(sc, uw_bound_m_s=sc.uw_bound_m_s + k) for k in range(1, 25)]
+    solvers = []
+    for plant in plants:
+        ocp = batch.env_ocp(plant)
+        solvers.append(serial.get_solver(ocp, **batch.SOLVER_OPTIONS))  # not built: cheap
+        assert len(batch._OCPS) <= batch.MAX_CACHED_OCPS
+        assert len(serial._SOLVERS) <= serial.MAX_CACHED_SOLVERS
+    last = plants[-1]
+    assert serial.get_solver(batch.env_ocp(last), **batch.SOLVER_OPTIONS) is solvers[-1]
+    assert batch.env_ocp(last).scenario == last
+    # an evicted plant is rebuilt for its own scenario, never another plant's
+    first = batch.env_ocp(plants[0])
+    assert first.scenario == plants[0]
+    assert serial.get_solver(first, **batch.SOLVER_OPTIONS).ocp is first
+
+
 def _fake_solve_case(scenario, x0_nd, warm=None):
     """Stands in for the NLP solve: row k (its mass column holds k) 'succeeds' unless k is 3,
     and records which case warm-started it."""

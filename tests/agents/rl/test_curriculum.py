@@ -85,12 +85,40 @@ def test_error_curriculum_anneals_the_uncertainty_in_and_then_flies_the_full_set
     cur.close()
 
 
+def test_error_curriculum_with_a_final_scale_above_one_trains_with_a_margin():
+    """final_scale > 1: the step schedule ends there and the success schedule is capped there
+    (a fixed margin when start_scale == final_scale); the env flies the scaled model."""
+    from agents.rl.curriculum import ErrorScaleCurriculum
+
+    venv = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0, dt_s=5.0, uncertainty="standard")
+    cur = ErrorScaleCurriculum(venv, total_timesteps=400, start_scale=0.5, final_scale=1.5,
+                               anneal_fraction=0.5)
+    cur.num_timesteps = 100
+    assert cur.current_scale == pytest.approx(1.0)
+    cur.num_timesteps = 400
+    cur.apply()
+    assert cur.current_scale == 1.5 and venv.native.error_scale == 1.5
+    fixed = ErrorScaleCurriculum(venv, total_timesteps=400, start_scale=1.5, final_scale=1.5)
+    assert fixed.current_scale == 1.5 and venv.native.error_scale == 1.5
+    by_success = ErrorScaleCurriculum(venv, total_timesteps=400, start_scale=1.0,
+                                      final_scale=1.2, anneal_fraction=None,
+                                      success_threshold=0.5, scale_step=0.15, window_episodes=1)
+    by_success.record_episodes([True] * 5)
+    assert by_success.success_scale == pytest.approx(1.2)
+    with pytest.raises(ValueError, match=r"success_scale=1.3.*final_scale=1.2"):
+        by_success.load_state_dict({"success_scale": 1.3})
+    venv.close()
+
+
 def test_error_curriculum_rejects_bad_arguments_and_an_env_without_errors():
     from agents.rl.curriculum import ErrorScaleCurriculum
 
     venv = make_sb3_vec_env("LunarSoftLanding-v0", 2, seed=0, uncertainty="standard")
-    with pytest.raises(ValueError, match="start_scale"):
+    with pytest.raises(ValueError, match=r"start_scale=1.5 must be in \[0, final_scale=1.0\]"):
         ErrorScaleCurriculum(venv, 100, start_scale=1.5)
+    for bad in (0.0, -1.0, float("inf")):
+        with pytest.raises(ValueError, match="final_scale"):
+            ErrorScaleCurriculum(venv, 100, final_scale=bad)
     with pytest.raises(ValueError, match="anneal_fraction"):
         ErrorScaleCurriculum(venv, 100, anneal_fraction=0.0)
     venv.close()
