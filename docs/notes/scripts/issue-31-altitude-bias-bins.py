@@ -1,0 +1,61 @@
+"""Issue 31: a pinpoint campaign's success by the sign and size of each case's navigation
+altitude bias.
+
+``python docs/notes/scripts/issue-31-altitude-bias-bins.py CAMPAIGN_DIR``
+
+``CAMPAIGN_DIR`` is a campaign's ``--out`` (``campaign.json`` and ``cases.csv``). Each case's
+navigation position bias is re-drawn as the campaign drew it (a vector env of each chunk's
+cases reset with ``seed + first``: :func:`agents.evaluation.campaign._starts`; nothing is
+flown), and every law's success rate is printed per bin of the up component (m; navigated
+altitude = true altitude + bias). Only campaigns at error scale 1 of their model.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+BINS_M = (-400.0, -100.0, -50.0, -20.0, 0.0, 20.0, 50.0, 100.0, 400.0)
+
+
+def altitude_bias_m(summary: dict) -> np.ndarray:
+    """The up component of the navigation position bias (m) of every case of a campaign."""
+    from agents.evaluation.campaign import _starts
+    from lunar_env.uncertainty import UncertaintyModel
+
+    model = UncertaintyModel(**summary["uncertainty_model"])
+    kwargs = {**summary["env_kwargs"], "uncertainty": model}
+    n, chunk, seed = int(summary["cases"]), int(summary.get("chunk", 100)), int(summary["seed"])
+    out = []
+    for first in range(0, n, chunk):
+        _, _, errors, _ = _starts(summary["env"], kwargs, min(chunk, n - first), seed + first)
+        out.append(np.asarray(errors.nav_position_bias_m)[:, 0])
+    return np.concatenate(out)
+
+
+def main(argv: list[str]) -> None:
+    if len(argv) != 1:
+        raise SystemExit(__doc__)
+    out_dir = Path(argv[0])
+    summary = json.loads((out_dir / "campaign.json").read_text())
+    bias = altitude_bias_m(summary)
+    rows = list(csv.DictReader((out_dir / "cases.csv").open()))
+    edges = list(zip(BINS_M[:-1], BINS_M[1:], strict=True))
+    print("altitude bias (m)      " + "".join(f"{f'[{lo:g}, {hi:g})':>13s}" for lo, hi in edges))
+    counts = [int(((bias >= lo) & (bias < hi)).sum()) for lo, hi in edges]
+    print("cases                  " + "".join(f"{c:>13d}" for c in counts))
+    for law in summary["laws"]:
+        ok = np.zeros(len(bias), dtype=bool)
+        for r in rows:
+            if r["law"] == law:
+                ok[int(r["case"])] = r["success"] == "True"
+        rates = [100.0 * ok[(bias >= lo) & (bias < hi)].mean() for lo, hi in edges]
+        print(f"{law[:22]:22s} " + "".join(f"{x:12.0f}%" for x in rates))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
