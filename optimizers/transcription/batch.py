@@ -159,7 +159,8 @@ def env_ocp(scenario: PinpointScenario) -> PinpointOCP:
     """The landing env's optimal-control problem: [001]'s, with the path kept above the 2 km
     gate sphere (the env ends an episode wherever the lander crosses it; [001]'s optimum may dip
     below 2 km mid-flight for dispersed starts, which the env scores as a crash) and
-    :data:`GATE_CLEARANCE`. Built once per scenario fingerprint."""
+    :data:`GATE_CLEARANCE`. Built once per scenario fingerprint (kept while among the
+    :data:`MAX_CACHED_OCPS` most recently used)."""
     return _cached_ocp(("env", scenario_fingerprint(scenario)),
                        lambda: PinpointOCP(scenario, min_altitude_m=scenario.target.altitude_m,
                                            **GATE_CLEARANCE))
@@ -168,7 +169,7 @@ def env_ocp(scenario: PinpointScenario) -> PinpointOCP:
 def replan_ocp(scenario: PinpointScenario) -> PinpointOCP:
     """The env's problem from a mid-flight state: :func:`env_ocp` with the final-time lower
     bound relaxed to 1 s ([001]'s 300 s bound is about the whole descent, not the time to go).
-    Built once per scenario fingerprint."""
+    Built once per scenario fingerprint, as :func:`env_ocp`."""
     def build() -> PinpointOCP:
         sc = dataclasses.replace(scenario, tf_bounds_s=(1.0, scenario.tf_bounds_s[1]))
         return PinpointOCP(sc, min_altitude_m=scenario.target.altitude_m, **GATE_CLEARANCE)
