@@ -7,10 +7,11 @@ A trained pinpoint policy (``RUN``) lands 89-100 % of the cases whose navigation
 it *lower* than it is, and 0 % of those that believe it higher by more than ~20 m
 (``docs/notes/issue-31.md``, "The altitude bias, by sign"). The wrapper law here shifts the
 navigated altitude the policy sees down by a margin Δ (and the target's radial offset up by
-the same), scaled as the navigation error itself shrinks (``lunar_env.uncertainty``'s
-terminal-sensor multiplier: 1 above the radar lock altitude, then ``radar_lock_fraction`` ×
-altitude / lock altitude, floored): a law designed for its sensors that plans for a lander
-Δ lower than its navigation says until the radar has measured the altitude. It sees the
+the same), scaled as the navigation error itself shrinks
+(:func:`lunar_env.uncertainty.radar_weight`: 1 above the radar lock altitude, then
+``radar_lock_fraction`` × altitude / lock altitude, floored): a law designed for its
+sensors that plans for a lander Δ lower than its navigation says until the radar has
+measured the altitude. It sees the
 navigation solution only (the guidance-law contract). Every margin flies the same cases
 (``agents.evaluation.compare.rollout``, case i = sub-env seeded ``seed + i``); the env
 decides success.
@@ -29,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.common.law import GuidanceLaw, Navigation
-from lunar_env.uncertainty import resolve_uncertainty
+from lunar_env.uncertainty import radar_weight, resolve_uncertainty
 
 ENV_ID = "LunarPinpointLanding-v2"
 #: bins of the navigation altitude bias (m) for the per-bin success
@@ -56,12 +57,8 @@ class AltitudeMargin(GuidanceLaw):
     def act(self, nav: Navigation) -> np.ndarray:
         if self.margin_m == 0.0:
             return self.inner.act(nav)
-        m = self.model
         h = self.computer.decode(nav.obs)["altitude_m"] + self.gate_altitude_m
-        ratio = np.maximum(h / m.radar_altitude_m, 0.0)
-        shrink = np.where(ratio > 1.0, 1.0, np.maximum(m.radar_lock_fraction * ratio,
-                                                       m.near_ground_position_fraction))
-        delta = self.margin_m * shrink
+        delta = self.margin_m * radar_weight(self.model, h)[0]  # the position multiplier
         obs = np.array(nav.obs, dtype=np.float32, copy=True)
         obs[:, 0] -= (delta / self.altitude_per_unit_m).astype(np.float32)
         obs[:, 1] += (delta / self.radial_per_unit_m).astype(np.float32)
