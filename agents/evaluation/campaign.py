@@ -352,10 +352,13 @@ def campaign_summary(config: CampaignConfig, cases: dict[str, dict[str, np.ndarr
 
 
 def _json_safe(o):
+    """Plain JSON values: non-finite floats as null, NumPy scalars and arrays as Python ones."""
     if isinstance(o, dict):
         return {k: _json_safe(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
+    if isinstance(o, (list, tuple, np.ndarray)):
         return [_json_safe(v) for v in o]
+    if isinstance(o, np.bool_):
+        return bool(o)
     if isinstance(o, (float, np.floating)):
         return float(o) if math.isfinite(float(o)) else None
     if isinstance(o, np.integer):

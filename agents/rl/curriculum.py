@@ -24,7 +24,6 @@ pool.
 
 from __future__ import annotations
 
-import math
 import time
 from typing import Any
 
@@ -32,7 +31,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from agents.common.families import family_of
-from lunar_env.validation import require_integer, require_number
+from lunar_env.validation import require_finite_positive, require_integer, require_number
 
 __all__ = ["ErrorScaleCurriculum", "OptimalStartCurriculum", "optimal_start_pool"]
 
@@ -229,9 +228,7 @@ class ErrorScaleCurriculum(VecEnvWrapper):
         if native is None or not hasattr(native, "set_error_scale"):
             raise TypeError("ErrorScaleCurriculum needs the native lunar_env vector env inside "
                             "(agents.common.vec_env.make_sb3_vec_env)")
-        final_scale = require_number("final_scale", final_scale)
-        if not (math.isfinite(final_scale) and final_scale > 0.0):
-            raise ValueError(f"final_scale={final_scale!r} must be a finite number > 0")
+        final_scale = require_finite_positive("final_scale", final_scale)
         start_scale = require_number("start_scale", start_scale)
         if not (0.0 <= start_scale <= final_scale):
             raise ValueError(f"start_scale={start_scale!r} must be in [0, final_scale="

@@ -190,6 +190,8 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     torch.set_num_threads(max(int(run.get("torch_threads") or 1), 1))
     set_random_seed(seed)
     n_envs, n_timesteps = hp["n_envs"], hp["n_timesteps"]
+    # whether VecNormalize keeps updating its statistics (every branch below that builds one)
+    update_stats = _normalize_updates(hp.get("normalize"))
     venv = make_training_env(run["env"], n_envs, seed, hp.get("env_kwargs"),
                              curriculum=hp.get("curriculum"), total_timesteps=n_timesteps,
                              progress=not run.get("no_progress"),
@@ -205,7 +207,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             run_dir, needs_vecnormalize=bool(hp.get("normalize")))
         if vn_path is not None:
             venv = VecNormalize.load(str(vn_path), venv)
-            venv.training = _normalize_updates(hp.get("normalize"))
+            venv.training = update_stats
         model = algo_class(algo).load(ckpt, env=venv, device=run.get("device", "cpu"),
                                        tensorboard_log=tb_dir)
         model.verbose = int(run.get("verbose", 0))  # the console of this session
@@ -233,11 +235,11 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                       "norm_obs is off (the initial policy expects raw observations)")
             if norm_kw is not None and init_vn is not None:
                 venv = VecNormalize.load(str(init_vn), venv)
-                venv.training = _normalize_updates(hp.get("normalize"))
+                venv.training = update_stats
                 norm_kw = None
         if norm_kw is not None:
             venv = VecNormalize(venv, **norm_kw)
-            venv.training = _normalize_updates(hp.get("normalize"))
+            venv.training = update_stats
         kwargs = resolve_algo_kwargs(hp, algo, n_actions=int(np.prod(venv.action_space.shape)))
         if init is not None:
             from agents.common.features import StandardizedInputs

@@ -21,15 +21,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
-import tempfile
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from agents.common.law import GuidanceLaw, Navigation
+from agents.common.runs import write_text_atomic
 from lunar_env.uncertainty import radar_weight, resolve_uncertainty
 
 ENV_ID = "LunarPinpointLanding-v2"
@@ -116,10 +115,7 @@ def main(argv: list[str]) -> None:
     if args.json:
         out = {"run": str(args.run), "env": ENV_ID, "seed": args.seed,
                "uncertainty": model.as_dict(), "rows": rows}
-        fd, tmp = tempfile.mkstemp(suffix=".json", dir=args.json.parent)
-        with os.fdopen(fd, "w") as fh:
-            json.dump(out, fh, indent=1, default=float)
-        os.replace(tmp, args.json)
+        write_text_atomic(args.json, json.dumps(out, indent=1, default=float))
 
 
 if __name__ == "__main__":

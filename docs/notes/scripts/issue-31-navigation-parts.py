@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
+
+from agents.common.runs import write_text_atomic
 
 Z3 = [0.0, 0.0, 0.0]
 #: every group of `standard` but navigation, zeroed
@@ -78,10 +78,7 @@ def main(argv: list[str]) -> None:
                                     "touchdown_speed_p50_m_s", "miss_p50_m", "miss_p99_m")}
             for law, s in laws.items()}}
     out = args.out_dir / "navigation_parts.json"
-    fd, tmp = tempfile.mkstemp(suffix=".json", dir=args.out_dir)
-    with os.fdopen(fd, "w") as fh:
-        json.dump(merged, fh, indent=1)
-    os.replace(tmp, out)
+    write_text_atomic(out, json.dumps(merged, indent=1))
     print(f"\n{'part':38s}" + "".join(f"{law.rstrip('/').split('/')[-1]:>26s}"
                                         for law in args.laws))
     for name, row in merged.items():

@@ -55,9 +55,7 @@ import argparse
 import csv
 import json
 import math
-import os
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -534,28 +532,13 @@ def run_case(scenario, c: Case, *, knots: int, iters: int, case_budget_s: float,
     return row
 
 
-def _json_safe(o: Any) -> Any:
-    """Plain JSON: non-finite floats as null, NumPy scalars and arrays as Python values."""
-    if isinstance(o, dict):
-        return {str(k): _json_safe(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple, np.ndarray)):
-        return [_json_safe(v) for v in o]
-    if isinstance(o, (bool, np.bool_)):
-        return bool(o)
-    if isinstance(o, (int, np.integer)):
-        return int(o)
-    if isinstance(o, (float, np.floating)):
-        return float(o) if math.isfinite(float(o)) else None
-    return o
-
-
 def write_json(path: Path, obj: dict[str, Any]) -> None:
-    """``obj`` written to ``path`` atomically (a temporary file, then os.replace)."""
+    """``obj`` written to ``path`` atomically (non-finite floats as null)."""
+    from agents.common.runs import write_text_atomic
+    from agents.evaluation.campaign import _json_safe
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    with os.fdopen(fd, "w") as fh:
-        json.dump(_json_safe(obj), fh, indent=1, allow_nan=False)
-    os.replace(tmp, path)
+    write_text_atomic(path, json.dumps(_json_safe(obj), indent=1, allow_nan=False))
 
 
 def main(argv: list[str] | None = None) -> int:
