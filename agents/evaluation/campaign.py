@@ -16,9 +16,10 @@ only that law.
 **Reference.** The omniscient optimum of a case is the certified minimum-fuel landing of its
 *true* plant (thrust and Isp scales) from its *true* start (entry and wet-mass errors), as if
 the flight computer knew everything (a misalignment it knew would be steered out at no fuel
-cost): Pontryagin for the planar env, the compiled 3D Pontryagin extremal for pinpoint
+cost): Pontryagin for the planar env; for pinpoint the compiled 3D Pontryagin extremal, and the
+direct optimum (GPM + shooting) where the extremal's shooting fails
 (:meth:`~agents.experts.family.EnvFamily.plant_optimum_fuel`). Every law's fuel is reported as
-a gap to it.
+a gap to it; the JSON counts the cases each method solved.
 
 **Robustness curve.** The first ``curve_cases`` cases flown again with every error scaled by
 each factor of ``scales`` (0, 0.5, 1, 2, 3 × the set by default;
@@ -56,6 +57,9 @@ SCHEMA_VERSION = 1
 _CASE_KEYS = ("success", "touchdown_speed_m_s", "miss_distance_m", "fuel_kg", "time_s",
               "propellant_left_kg", "downrange_offset_m", "crossrange_offset_m")
 _REF_KEYS = ("thrust_scale", "isp_scale", "mass_error_kg", "omniscient_fuel_kg")
+#: the reference tasks' key in the campaign's store, versioned: a store made by an older
+#: reference recomputes it (v2, issue 31: the pinpoint direct-method fallback)
+_REF_TASK = "reference_v2"
 
 
 @dataclass(frozen=True)
@@ -154,10 +158,11 @@ def reference_chunk(env_id: str, env_kwargs: dict, model_dict: dict, first: int,
     truth, _, errors, core = _starts(env_id, kwargs, n, seed + first)
     fam = family_of(core)
     t0 = time.perf_counter()
-    fuel = fam.plant_optimum_fuel(core.scenario, truth, errors.thrust_scale, errors.isp_scale)
+    ref = fam.plant_optimum_fuel(core.scenario, truth, errors.thrust_scale, errors.isp_scale)
     return {"case": list(range(first, first + n)),
             "thrust_scale": errors.thrust_scale.tolist(), "isp_scale": errors.isp_scale.tolist(),
-            "mass_error_kg": errors.mass_error_kg.tolist(), "omniscient_fuel_kg": fuel.tolist(),
+            "mass_error_kg": errors.mass_error_kg.tolist(),
+            "omniscient_fuel_kg": ref.fuel_kg.tolist(), "omniscient_solver": list(ref.solver),
             "wall_s": time.perf_counter() - t0}
 
 
@@ -280,7 +285,7 @@ class CampaignResult:
     config : CampaignConfig
     cases : dict law label -> dict of per-case arrays (:data:`_CASE_KEYS`, ``us_per_decision``)
     reference : dict of per-case arrays (``thrust_scale``, ``isp_scale``, ``mass_error_kg``,
-        ``omniscient_fuel_kg``)
+        ``omniscient_fuel_kg``, ``omniscient_solver``: the method that found it, "" where none)
     curve : dict law label -> list of (scale, successes, cases)
     summary : dict
         :func:`campaign_summary`.
@@ -299,14 +304,16 @@ class CampaignResult:
         buf = io.StringIO()
         w = csv.writer(buf)
         ref_cols = list(_REF_KEYS)
-        w.writerow(["law", "case", *_CASE_KEYS, "fuel_gap_pct", *ref_cols])
+        w.writerow(["law", "case", *_CASE_KEYS, "fuel_gap_pct", *ref_cols,
+                    "omniscient_solver"])
         ref = self.reference
         for name, rows in self.cases.items():
             gap = 100.0 * (rows["fuel_kg"] - ref["omniscient_fuel_kg"]) \
                 / ref["omniscient_fuel_kg"]
             for i in range(len(rows["success"])):
                 w.writerow([name, i, *(_fmt(rows[k][i]) for k in _CASE_KEYS), _fmt(gap[i]),
-                            *(_fmt(ref[k][i]) for k in ref_cols)])
+                            *(_fmt(ref[k][i]) for k in ref_cols),
+                            ref["omniscient_solver"][i]])
         return buf.getvalue()
 
 
@@ -330,7 +337,7 @@ def campaign_summary(config: CampaignConfig, cases: dict[str, dict[str, np.ndarr
                          "footprint_3sigma" (pinpoint), "fuel_p50_kg", "fuel_p99_kg",
                          "fuel_gap_p50_pct", "fuel_gap_p99_pct", "propellant_margin_p1_kg",
                          "us_per_decision", "cases", "successes", "fuel_gap_cases"}},
-         "reference": {"solver", "converged", "fuel_p50_kg"},
+         "reference": {"solver", "converged", "converged_by": {METHOD: n}, "fuel_p50_kg"},
          "robustness_curve": {NAME: [{"scale", "success_rate", "success_ci95", "cases"}]},
          "wall_s": seconds}
 
@@ -343,6 +350,9 @@ def campaign_summary(config: CampaignConfig, cases: dict[str, dict[str, np.ndarr
         "uncertainty_model": config.uncertainty.as_dict(), "cases": int(config.cases),
         "seed": int(config.seed), "env_kwargs": config.env_kwargs, "laws": laws,
         "reference": {**reference_info, "converged": int(np.isfinite(ref_fuel).sum()),
+                      "converged_by": {m: int(n) for m, n in zip(*np.unique(
+                          [m for m in reference["omniscient_solver"] if m],
+                          return_counts=True), strict=True)},
                       "fuel_p50_kg": _finite_pct(ref_fuel, 50)},
         "robustness_curve": {
             name: [{"scale": s, "success_rate": k / m, "success_ci95": list(wilson_interval(k, m)),
@@ -400,7 +410,7 @@ def run_campaign(config: CampaignConfig, out_dir: str | Path, *, workers: int = 
     model_dict = config.uncertainty.as_dict()
     tasks = []
     for k, (a, n) in enumerate(config.chunks(config.cases)):
-        tasks.append(Task(TaskKey("reference", config.seed, k), reference_chunk,
+        tasks.append(Task(TaskKey(_REF_TASK, config.seed, k), reference_chunk,
                           (config.env_id, config.env_kwargs, model_dict, a, n, config.seed)))
     curve_n = min(config.curve_cases, config.cases)
     # every law at scale 1 on all cases (the table); the curve's other scales on curve_n cases
@@ -431,7 +441,8 @@ def run_campaign(config: CampaignConfig, out_dir: str | Path, *, workers: int = 
                                                 else np.float64) for p in parts])
                 for key in keys}, parts
 
-    reference, ref_parts = gather("reference", _REF_KEYS, config.cases)
+    reference, ref_parts = gather(_REF_TASK, _REF_KEYS, config.cases)
+    reference["omniscient_solver"] = [m for p in ref_parts for m in p["omniscient_solver"]]
     cases: dict[str, dict[str, np.ndarray]] = {}
     curve: dict[str, list[tuple[float, int, int]]] = {}
     for text in config.laws:

@@ -20,7 +20,8 @@ import numpy as np
 
 from agents.common.law import GuidanceLaw
 
-__all__ = ["EnvFamily", "PerCaseOptimum", "DatasetRecipe", "DaggerRequest", "plant_scenario"]
+__all__ = ["EnvFamily", "PerCaseOptimum", "PlantOptimumFuel", "DatasetRecipe", "DaggerRequest",
+           "plant_scenario"]
 
 
 def plant_scenario(scenario, thrust_scale: float, isp_scale: float):
@@ -67,6 +68,27 @@ class PerCaseOptimum:
             "solver": solver, "converged": int(ok.sum()),
             "fuel_mean_kg": float(np.mean(fuel[ok])) if ok.any() else float("nan"),
             "wall_s": float(wall_s)})
+
+
+@dataclass(frozen=True)
+class PlantOptimumFuel:
+    """The omniscient reference of a campaign's cases (:meth:`EnvFamily.plant_optimum_fuel`).
+
+    Attributes
+    ----------
+    fuel_kg : ndarray, shape (n,)
+        Minimum propellant (kg) of each case's true plant from its true start; NaN where no
+        method found an optimum.
+    solver : tuple of str, length n
+        The method that found each case's optimum (``""`` where none did).
+    """
+
+    fuel_kg: np.ndarray
+    solver: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        if len(self.solver) != len(self.fuel_kg):
+            raise ValueError(f"{len(self.solver)} solver names for {len(self.fuel_kg)} cases")
 
 
 @dataclass(frozen=True)
@@ -174,19 +196,24 @@ class EnvFamily(ABC):
         """The certified minimum-fuel optimum from each normalised initial state (n, n_state)."""
 
     def plant_optimum_fuel(self, scenario, states_nd: np.ndarray, thrust_scale: np.ndarray,
-                           isp_scale: np.ndarray, *, progress: bool = False) -> np.ndarray:
+                           isp_scale: np.ndarray, *, progress: bool = False
+                           ) -> PlantOptimumFuel:
         """Minimum propellant (kg) of each case (n,) from its true normalised start (n, n_state)
         with its true engine (thrust and Isp scales (n,)): the omniscient reference of a
-        campaign. NaN where no optimum was found. This default groups the cases by plant and
-        calls :meth:`per_case_optimum`; families with a faster certified solver override it."""
+        campaign, NaN where no optimum was found, with the method that found each. This default
+        groups the cases by plant and calls :meth:`per_case_optimum`; families with a faster
+        certified solver override it."""
         fuel = np.full(len(states_nd), np.nan)
+        solver = [""] * len(states_nd)
         plants = np.stack([np.asarray(thrust_scale, float), np.asarray(isp_scale, float)], 1)
         for plant in np.unique(plants, axis=0):
             rows = np.flatnonzero(np.all(plants == plant, axis=1))
             opt = self.per_case_optimum(plant_scenario(scenario, *plant), states_nd[rows],
                                         progress=progress)
             fuel[rows] = opt.fuel_kg
-        return fuel
+            for r, f in zip(rows, opt.fuel_kg, strict=True):
+                solver[r] = opt.info["solver"] if np.isfinite(f) else ""
+        return PlantOptimumFuel(fuel, tuple(solver))
 
     @abstractmethod
     def open_loop_law(self, optimum: PerCaseOptimum) -> GuidanceLaw:

@@ -37,7 +37,9 @@ Keys that are not algorithm arguments (``n_envs``, ``n_timesteps``, ``policy``, 
 ``reward_shaping``) are taken out before the
 algorithm is built. ``curriculum`` is a mapping of :class:`agents.rl.curriculum.
 OptimalStartCurriculum` arguments (``start_prob``, ``anneal_fraction``, ``n_trajectories``,
-...), or absent.
+...), or absent. ``added_action_init`` (``{action: [...], log_std: [...]}``) says how a run
+started by ``--init-from`` fills the action channels its initial policy lacks, e.g. a throttle
+channel (:func:`agents.rl.training.widen_action_head`).
 """
 
 from __future__ import annotations
@@ -62,7 +64,7 @@ PROFILE_SEPARATOR = "@"
 #: keys consumed by the training script itself, not passed to the algorithm constructor
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "noise_type", "noise_std",
             "env_kwargs", "curriculum", "error_curriculum", "obs_features", "reward_shaping",
-            "critic_warmup_steps",
+            "critic_warmup_steps", "added_action_init",
             "select_checkpoint", "seed_race")
 #: keys of earlier versions, refused with the reason they were removed
 REMOVED_KEYS = {

@@ -170,6 +170,65 @@ def _select_final(model, run_dir: Path, run: dict[str, Any], hp: dict[str, Any],
     return algo_class(algo).load(run_dir / "model.zip", device=run.get("device", "cpu"))
 
 
+def widen_action_head(weights: dict, target: dict, added: Any, source: str) -> dict:
+    """``weights`` (a loaded PPO policy's state dict) for a policy with more action channels.
+
+    ``added`` (the ``added_action_init`` hyperparameter) is a mapping ``{action: [...],
+    log_std: [...]}`` with one entry per channel ``target`` has and the loaded policy lacks:
+    the constant action in [-1, 1] the channel starts at, and optionally its exploration log σ
+    (default: this run's ``log_std_init``, as for every channel of ``--init-from``). Example:
+    ``{action: [1.0], log_std: [-6.0]}`` for a pinpoint policy trained without a throttle
+    channel and continued with one (``throttle_channel: true``; action 1 is full thrust). The
+    added rows of the action head get zero weights and that action as bias, so the widened
+    policy's mean flies exactly as the loaded one did; the loaded channels are copied.
+
+    Raises ValueError when the heads differ and ``added`` does not say how to fill them, when
+    it is given for heads that already match, or when a value is malformed."""
+    import torch
+
+    key_w, key_b = "action_net.weight", "action_net.bias"
+    if key_w not in weights or key_w not in target:
+        if added is not None:
+            raise ValueError(f"added_action_init={added!r}: only for PPO policies (an "
+                             f"'{key_w}' head); --init-from {source} has none")
+        return weights
+    n_old, n_new = weights[key_w].shape[0], target[key_w].shape[0]
+    if n_old == n_new:
+        if added is not None:
+            raise ValueError(f"added_action_init={added!r}: --init-from {source} already has "
+                             f"this env's {n_new} action channels; drop the key")
+        return weights
+    n_add = n_new - n_old
+    if n_old > n_new or added is None:
+        raise ValueError(
+            f"--init-from {source} has {n_old} action channels, this env {n_new}"
+            + ("" if n_old > n_new else
+               f"; set added_action_init to {{action: [...], log_std: [...]}} with {n_add} "
+               "value(s) each: the constant action(s) in [-1, 1] the added channel(s) start at "
+               "(e.g. 1.0: a throttle channel at full thrust) and, optionally, their log σ"))
+    if not isinstance(added, dict) or set(added) - {"action", "log_std"} or "action" not in added:
+        raise ValueError(f"added_action_init={added!r}: must be a mapping with 'action' and "
+                         "optionally 'log_std'")
+
+    def values(key: str, bound: float) -> np.ndarray:
+        v = np.asarray(added[key], dtype=np.float64).reshape(-1)
+        if len(v) != n_add or not np.all(np.isfinite(v)) or np.any(np.abs(v) > bound):
+            raise ValueError(f"added_action_init.{key}={added[key]!r}: needs {n_add} finite "
+                             f"value(s) in [-{bound:g}, {bound:g}], one per channel --init-from "
+                             f"{source} lacks")
+        return v
+
+    out = dict(weights)
+    w, b = weights[key_w], weights[key_b]
+    out[key_w] = torch.cat([w, torch.zeros(n_add, w.shape[1], dtype=w.dtype)])
+    out[key_b] = torch.cat([b, torch.as_tensor(values("action", 1.0), dtype=b.dtype)])
+    if added.get("log_std") is not None:
+        log_std = target["log_std"].clone()
+        log_std[n_old:] = torch.as_tensor(values("log_std", 20.0), dtype=log_std.dtype)
+        out["log_std"] = log_std
+    return out
+
+
 def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False,
           callbacks: list | None = None, on_resumed=None):
     """Train (or continue) one run; returns ``(model, run_dir)``.
@@ -235,6 +294,9 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                       "norm_obs is off (the initial policy expects raw observations)")
             if norm_kw is not None and init_vn is not None:
                 venv = VecNormalize.load(str(init_vn), venv)
+                # VecNormalize.load keeps the pickled action space; this env's is the one to
+                # learn (it differs when the init policy lacked a channel: added_action_init)
+                venv.action_space = venv.venv.action_space
                 venv.training = update_stats
                 norm_kw = None
         if norm_kw is not None:
@@ -258,6 +320,8 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             # the exploration noise (log_std) stays this run's log_std_init: a cloned policy
             # carries whatever its trainer left there
             weights = {k: v for k, v in init.policy.state_dict().items() if k != "log_std"}
+            weights = widen_action_head(weights, model.policy.state_dict(),
+                                        hp.get("added_action_init"), run["init_from"])
             try:
                 model.policy.load_state_dict(weights, strict=False)
                 missing = set(model.policy.state_dict()) - set(weights) - {"log_std"}

@@ -50,7 +50,7 @@ __all__ = ["lunar_vec_env", "TrainingOnly", "zoo_entry", "zoo_hyperparams", "ren
 #: profiles for which a Zoo file is generated (None: the base entries)
 ZOO_PROFILES: tuple[str | None, ...] = (None, "quick")
 #: run-level keys of ``python train.py`` the Zoo has no counterpart for
-LEFT_OUT_KEYS = ("select_checkpoint", "seed_race", "critic_warmup_steps")
+LEFT_OUT_KEYS = ("select_checkpoint", "seed_race", "critic_warmup_steps", "added_action_init")
 #: keys handed to :func:`lunar_vec_env`
 _WRAPPER_KEYS = ("obs_features", "reward_shaping", "curriculum")
 _WRAPPER = "agents.rl.zoo.lunar_vec_env"

@@ -13,6 +13,7 @@ from agents.campaign import format_table, main
 from agents.common.law import GuidanceLaw
 from agents.evaluation.campaign import CampaignConfig, run_campaign
 from agents.evaluation.statistics import footprint_ellipse, wilson_interval
+from agents.experts.planar.family import PONTRYAGIN as PLANAR_PONTRYAGIN
 
 ENV = "LunarSoftLanding-v0"
 
@@ -61,6 +62,8 @@ def test_contract_and_files(reference_run):
     # the omniscient reference: every case solved, each within the propellant budget
     ref = res.reference["omniscient_fuel_kg"]
     assert np.all(np.isfinite(ref)) and np.all((ref > 200) & (ref < 300))
+    assert s["reference"]["converged_by"] == {PLANAR_PONTRYAGIN: 4}
+    assert all(r.endswith(f",{PLANAR_PONTRYAGIN}") for r in rows[1:])
 
 
 def test_case_k_is_the_same_whatever_the_chunking_and_workers(reference_run, tmp_path):
@@ -202,10 +205,72 @@ def test_thrust_error_as_a_mass_change_is_exact():
                      uncertainty=MODEL)
     v.reset(seed=0, options={"errors": {"thrust_scale": 0.97}})
     c = v.unwrapped
-    got = family_of(c).plant_optimum_fuel(c.scenario, c.state_nd, [0.97], [1.0])[0]
+    got = family_of(c).plant_optimum_fuel(c.scenario, c.state_nd, [0.97], [1.0]).fuel_kg[0]
     row = planar_state_si(c.scenario, c.state_nd)[0]
     direct = solve_planar_min_fuel(plant_scenario(c.scenario, 0.97, 1.0), row, check="grid")
     assert direct.success
     assert got == pytest.approx(direct.fuel_kg, rel=1e-10)
     nominal = solve_planar_min_fuel(c.scenario, row, check="grid").fuel_kg
     assert got > nominal + 0.3  # a weaker engine lands on more propellant (gravity losses)
+
+
+def _pinpoint_campaign_cases(idx):
+    """Cases ``idx`` of the pinpoint campaign on ``standard`` (seed 0, dt 2 s, first chunk of
+    100): true starts, thrust and Isp scales, and the env's scenario."""
+    from agents.evaluation.campaign import _env_kwargs, _starts
+    from lunar_env.uncertainty import resolve_uncertainty
+
+    kw = _env_kwargs({"dt_s": 2.0}, resolve_uncertainty("standard").as_dict(), 1.0)
+    truth, _, err, core = _starts("LunarPinpointLanding-v2", kw, 100, 0)
+    return truth[idx], err.thrust_scale[idx], err.isp_scale[idx], core
+
+
+def test_pinpoint_reference_falls_back_to_the_direct_optimum_only_where_pontryagin_fails(
+        monkeypatch):
+    """Issue 31: case 27 of the pinpoint campaign (an engine 1.3 % stronger than nominal) has
+    no extremal the shooting finds; case 31 has one. The direct optimum is asked for case 27
+    only (stood in for here: the slow twin below solves it), its fuel becomes the reference,
+    each case names its method, and a case neither method lands stays NaN with no method."""
+    from agents.common.families import family_of
+    from agents.experts.pinpoint import family as pin
+
+    x0, kt, kc, core = _pinpoint_campaign_cases([27, 31])
+    asked = []
+
+    class Direct:
+        def __init__(self, success):
+            self.success, self.fuel_kg = success, 123.0
+
+    def fake_solve_case(scenario, x, warm=None):
+        asked.append((scenario.vehicle.thrust_n, x.copy(), warm))
+        return Direct(success)
+
+    monkeypatch.setattr("optimizers.transcription.batch.solve_case", fake_solve_case)
+    fam = family_of(core)
+    success = True
+    ref = fam.plant_optimum_fuel(core.scenario, x0, kt, kc)
+    assert ref.solver == (pin.DIRECT, pin.PONTRYAGIN)
+    assert ref.fuel_kg[0] == 123.0 and 270.0 < ref.fuel_kg[1] < 290.0
+    assert len(asked) == 1
+    thrust, x, warm = asked[0]
+    # the true plant from the true start, never warm-started from another case
+    assert thrust == pytest.approx(core.scenario.vehicle.thrust_n * kt[0], rel=1e-12)
+    assert np.array_equal(x, x0[0]) and warm is None
+    success = False
+    ref = fam.plant_optimum_fuel(core.scenario, x0[:1], kt[:1], kc[:1])
+    assert np.isnan(ref.fuel_kg[0]) and ref.solver == ("",)
+
+
+@pytest.mark.slow
+def test_pinpoint_reference_of_a_pontryagin_failure_is_the_direct_optimum():
+    """Slow twin (~10 s): case 27's reference solved for real. The direct optimum is 276.92 kg
+    (issue 31's feasibility study flew it in the env: it lands); case 31, solved by both
+    methods there, agrees within 0.01 kg."""
+    from agents.common.families import family_of
+    from agents.experts.pinpoint import family as pin
+
+    x0, kt, kc, core = _pinpoint_campaign_cases([27, 31])
+    ref = family_of(core).plant_optimum_fuel(core.scenario, x0, kt, kc)
+    assert ref.solver == (pin.DIRECT, pin.PONTRYAGIN)
+    assert ref.fuel_kg[0] == pytest.approx(276.917, abs=0.05)
+    assert ref.fuel_kg[1] == pytest.approx(277.862, abs=0.01)

@@ -248,3 +248,47 @@ def test_init_from_with_fixed_statistics_keeps_the_input_map(tmp_path):
 
     with pytest.raises(ValueError, match="normalize.update"):
         _normalize_updates({"update": "no"})
+
+
+def test_init_from_a_policy_without_a_throttle_channel_widens_its_action_head(tmp_path):
+    """added_action_init: a policy trained without a throttle channel continues with one. The
+    widened policy's mean flies as the loaded one did, its throttle held at the given action
+    (here with a learning rate of 0, so the weights are the loaded ones) with the given
+    exploration σ; a mismatch without the key, a wrong count, a value out of range, or the
+    key for matching heads is refused by name."""
+    from agents.rl.training import widen_action_head
+
+    base = tmp_path / "base"
+    assert tr.main([*QUICK, "--seed", "1", "--run-dir", str(base), "-n", "1024", "--no-eval",
+                    "--no-tensorboard"]) == 0
+    wide = tmp_path / "wide"
+    assert tr.main([*QUICK, "--seed", "2", "--run-dir", str(wide), "-n", "1024", "--no-eval",
+                    "--no-tensorboard", "--init-from", str(base), "--hyperparams",
+                    'env_kwargs={"throttle_channel": true}',
+                    "added_action_init={action: [0.8], log_std: [-6.0]}",
+                    "learning_rate=0.0"]) == 0
+    m0, _, _ = tr.load_trained(base)
+    m1, _, _ = tr.load_trained(wide)
+    assert m0.action_space.shape == (1,) and m1.action_space.shape == (2,)
+    obs = np.random.default_rng(0).normal(size=(64, *m0.observation_space.shape))
+    a0, _ = m0.policy.predict(obs, deterministic=True)
+    a1, _ = m1.policy.predict(obs, deterministic=True)
+    np.testing.assert_allclose(a1[:, :1], a0, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(a1[:, 1], 0.8, rtol=0, atol=1e-6)
+    log_std_init = m0.policy.log_std.detach().numpy()  # never updated: lr 0 in both runs
+    np.testing.assert_allclose(m1.policy.log_std.detach().numpy(), [log_std_init[0], -6.0])
+
+    w0, w1 = m0.policy.state_dict(), m1.policy.state_dict()
+    with pytest.raises(ValueError, match="set added_action_init to"):
+        widen_action_head(w0, w1, None, "base")
+    for bad in ([1.0], {"log_std": [-6.0]}, {"action": [1.0], "sigma": [1.0]}):
+        with pytest.raises(ValueError, match="must be a mapping with 'action'"):
+            widen_action_head(w0, w1, bad, "base")
+    for bad in ({"action": [1.0, 1.0]}, {"action": [1.5]}, {"action": [float("nan")]},
+                {"action": [1.0], "log_std": [-6.0, -6.0]}):
+        with pytest.raises(ValueError, match="needs 1 finite value"):
+            widen_action_head(w0, w1, bad, "base")
+    with pytest.raises(ValueError, match="already has this env's 1 action"):
+        widen_action_head(w0, w0, {"action": [1.0]}, "base")
+    with pytest.raises(ValueError, match="has 2 action channels, this env 1"):
+        widen_action_head(w1, w0, None, "wide")

@@ -13,6 +13,7 @@ from agents.experts.family import (
     DatasetRecipe,
     EnvFamily,
     PerCaseOptimum,
+    PlantOptimumFuel,
     plant_scenario,
 )
 from agents.experts.pinpoint.data import pinpoint_dagger_iteration, pinpoint_dataset_recipe
@@ -32,6 +33,10 @@ from optimizers.indirect.pinpoint_feedback import (
     extremal_path,
     solve_extremal,
 )
+
+#: the methods of the pinpoint omniscient reference (:meth:`PinpointFamily.plant_optimum_fuel`)
+PONTRYAGIN = "Pontryagin extremal (optimizers.indirect.pinpoint_feedback)"
+DIRECT = "direct, GPM + shooting (optimizers.transcription.batch.solve_case)"
 
 
 class PinpointFamily(EnvFamily):
@@ -60,14 +65,30 @@ class PinpointFamily(EnvFamily):
             time.perf_counter() - t0)
 
     def plant_optimum_fuel(self, scenario, states_nd: np.ndarray, thrust_scale: np.ndarray,
-                           isp_scale: np.ndarray, *, progress: bool = False) -> np.ndarray:
-        """The minimum-fuel extremal of each case with its true engine (compiled Pontryagin
-        shooting, ~10 ms a case; the same optima as the GPM + shooting of
-        :meth:`per_case_optimum` within 0.01 kg, tests/optimizers/test_pinpoint_feedback.py).
-        The engine has constant thrust, so the minimum-fuel landing is the minimum-time one:
-        propellant = ṁ · t_go with the true ṁ = k_T T / (k_c c). NaN where the target is out of
-        reach (the extremal family folds before it)."""
+                           isp_scale: np.ndarray, *, progress: bool = False
+                           ) -> PlantOptimumFuel:
+        """The minimum-fuel landing of each case with its true engine.
+
+        First the minimum-fuel extremal (compiled Pontryagin shooting, ~10 ms a case; the same
+        optima as the GPM + shooting of :meth:`per_case_optimum` within 0.01 kg,
+        tests/optimizers/test_pinpoint_feedback.py). The engine has constant thrust, so the
+        minimum-fuel landing is the minimum-time one: propellant = ṁ · t_go with the true
+        ṁ = k_T T / (k_c c).
+
+        Where the shooting finds no extremal, the direct optimum of the true plant
+        (:func:`optimizers.transcription.batch.solve_case`: GPM collocation, then direct
+        shooting, with the env's gate constraint and propellant bound, replayed to the target;
+        ~8 s a case, ~40 s where none exists). Decision (issue 31): on 1000 ``standard`` cases
+        the shooting found no extremal for 52, 49 of them with engines 0.6–6 % stronger than
+        nominal; the direct method landed all 49 in the env and matched the extremal's fuel
+        within 0.06 kg on 5 control cases (docs/notes/issue-31-pinpoint-feasibility.json).
+        Without it those cases had no reference and the fuel gaps leaned towards weaker
+        engines. No case is warm-started from another, so a case's reference does not depend on
+        which cases share its chunk. NaN where neither method finds a landing."""
+        from optimizers.transcription.batch import solve_case
+
         fuel = np.full(len(states_nd), np.nan)
+        solver = [""] * len(states_nd)
         veh = scenario.vehicle
         mdot = veh.thrust_n / veh.exhaust_velocity_m_s
         nominal = PinpointFeedback(scenario)
@@ -75,25 +96,32 @@ class PinpointFamily(EnvFamily):
         if progress:
             from tqdm.auto import tqdm
 
-            it = tqdm(it, desc="omniscient optimum (Pontryagin)", unit="case")
+            it = tqdm(it, desc="omniscient optimum (Pontryagin, direct fallback)", unit="case")
         for k in it:
             kt, kc = float(thrust_scale[k]), float(isp_scale[k])
             x0 = np.asarray(states_nd[k], dtype=np.float64)
+            sc = plant_scenario(scenario, kt, kc)
             # continuation in the plant: the nominal engine's extremal from the same start is
             # the guess for the true engine's (a few per cent away)
             start = nominal.solve(x0)
-            if start is None:
-                continue
-            plant = PinpointFeedback(plant_scenario(scenario, kt, kc))
-            sol = solve_extremal(plant.k, x0, start.z, step_s=plant.step_s)
-            if not sol.converged:
-                try:
-                    sol = plant.solve(x0, start.z)
-                except RuntimeError:  # no extremal of this plant from its crude guesses
-                    sol = None
+            sol = None
+            if start is not None:
+                plant = PinpointFeedback(sc)
+                sol = solve_extremal(plant.k, x0, start.z, step_s=plant.step_s)
+                if not sol.converged:
+                    try:
+                        sol = plant.solve(x0, start.z)
+                    except RuntimeError:  # no extremal of this plant from its crude guesses
+                        sol = None
             if sol is not None and sol.converged and abs(sol.beyond_m) < TARGET_REACHED_M:
                 fuel[k] = mdot * kt / kc * sol.tgo_s
-        return fuel
+                solver[k] = PONTRYAGIN
+                continue
+            direct = solve_case(sc, x0)
+            if direct.success:
+                fuel[k] = direct.fuel_kg
+                solver[k] = DIRECT
+        return PlantOptimumFuel(fuel, tuple(solver))
 
     def open_loop_law(self, optimum: PerCaseOptimum) -> GuidanceLaw:
         return PinpointOpenLoopLaw(optimum.solutions)

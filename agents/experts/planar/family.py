@@ -13,6 +13,7 @@ from agents.experts.family import (
     DatasetRecipe,
     EnvFamily,
     PerCaseOptimum,
+    PlantOptimumFuel,
     plant_scenario,
 )
 from agents.experts.planar.data import planar_dagger_iteration, planar_dataset_recipe
@@ -26,6 +27,9 @@ from lunar_env.envs.soft_landing import thrust_angle_from_action
 from lunar_env.scenarios import PlanarScenario
 from optimizers.indirect.batch import solve_many
 from optimizers.indirect.planar import nominal_guess, release_solvers, solve_planar_min_fuel
+
+#: the planar omniscient reference's method
+PONTRYAGIN = "Pontryagin (optimizers.indirect.planar.solve_planar_min_fuel)"
 
 
 class PlanarFamily(EnvFamily):
@@ -53,7 +57,8 @@ class PlanarFamily(EnvFamily):
                                              time.perf_counter() - t0)
 
     def plant_optimum_fuel(self, scenario, states_nd: np.ndarray, thrust_scale: np.ndarray,
-                           isp_scale: np.ndarray, *, progress: bool = False) -> np.ndarray:
+                           isp_scale: np.ndarray, *, progress: bool = False
+                           ) -> PlantOptimumFuel:
         """Pontryagin's minimum-fuel optimum of each case with its true engine (the states' SI
         rows come from the nominal scaling, which the plant does not change). NaN where it did
         not converge.
@@ -83,7 +88,8 @@ class PlanarFamily(EnvFamily):
                 fuel[k] = kt * sol.fuel_kg
             if sc is not scenario:
                 release_solvers()
-        return fuel
+        solver = tuple(PONTRYAGIN if np.isfinite(f) else "" for f in fuel)
+        return PlantOptimumFuel(fuel, solver)
 
     def open_loop_law(self, optimum: PerCaseOptimum) -> GuidanceLaw:
         return PlanarOpenLoopLaw(optimum.solutions)
