@@ -183,6 +183,9 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
             print(f"--init-from {args.init_from}: obs_features set to {init_feats} (those of the "
                   "initial policy)")
             hp["obs_features"] = init_feats
+    if hp.get("added_action_init") is not None and not args.init_from:
+        raise ValueError(f"added_action_init={hp['added_action_init']!r} fills the action "
+                         "channels an --init-from policy lacks: give --init-from, or drop it")
     hp["n_timesteps"] = int(float(hp["n_timesteps"]))
     hp["n_envs"] = int(hp["n_envs"])
     if hp["n_timesteps"] < 1:

@@ -236,6 +236,7 @@ def test_pinpoint_reference_falls_back_to_the_direct_optimum_only_where_pontryag
 
     x0, kt, kc, core = _pinpoint_campaign_cases([27, 31])
     asked = []
+    direct_lands = [True]
 
     class Direct:
         def __init__(self, success):
@@ -243,11 +244,10 @@ def test_pinpoint_reference_falls_back_to_the_direct_optimum_only_where_pontryag
 
     def fake_solve_case(scenario, x, warm=None):
         asked.append((scenario.vehicle.thrust_n, x.copy(), warm))
-        return Direct(success)
+        return Direct(direct_lands[0])
 
     monkeypatch.setattr("optimizers.transcription.batch.solve_case", fake_solve_case)
     fam = family_of(core)
-    success = True
     ref = fam.plant_optimum_fuel(core.scenario, x0, kt, kc)
     assert ref.solver == (pin.DIRECT, pin.PONTRYAGIN)
     assert ref.fuel_kg[0] == 123.0 and 270.0 < ref.fuel_kg[1] < 290.0
@@ -256,7 +256,7 @@ def test_pinpoint_reference_falls_back_to_the_direct_optimum_only_where_pontryag
     # the true plant from the true start, never warm-started from another case
     assert thrust == pytest.approx(core.scenario.vehicle.thrust_n * kt[0], rel=1e-12)
     assert np.array_equal(x, x0[0]) and warm is None
-    success = False
+    direct_lands[0] = False
     ref = fam.plant_optimum_fuel(core.scenario, x0[:1], kt[:1], kc[:1])
     assert np.isnan(ref.fuel_kg[0]) and ref.solver == ("",)
 

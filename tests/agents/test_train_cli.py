@@ -292,3 +292,7 @@ def test_init_from_a_policy_without_a_throttle_channel_widens_its_action_head(tm
         widen_action_head(w0, w0, {"action": [1.0]}, "base")
     with pytest.raises(ValueError, match="has 2 action channels, this env 1"):
         widen_action_head(w1, w0, None, "wide")
+    with pytest.raises(SystemExit):  # the key without --init-from
+        tr.main([*QUICK, "--run-dir", str(tmp_path / "none"), "--no-eval", "--hyperparams",
+                 "added_action_init={action: [1.0]}"])
+    assert not (tmp_path / "none").exists()
