@@ -35,6 +35,7 @@ import io
 import json
 import math
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -350,9 +351,8 @@ def campaign_summary(config: CampaignConfig, cases: dict[str, dict[str, np.ndarr
         "uncertainty_model": config.uncertainty.as_dict(), "cases": int(config.cases),
         "seed": int(config.seed), "env_kwargs": config.env_kwargs, "laws": laws,
         "reference": {**reference_info, "converged": int(np.isfinite(ref_fuel).sum()),
-                      "converged_by": {m: int(n) for m, n in zip(*np.unique(
-                          [m for m in reference["omniscient_solver"] if m],
-                          return_counts=True), strict=True)},
+                      "converged_by": dict(sorted(Counter(
+                          m for m in reference["omniscient_solver"] if m).items())),
                       "fuel_p50_kg": _finite_pct(ref_fuel, 50)},
         "robustness_curve": {
             name: [{"scale": s, "success_rate": k / m, "success_ci95": list(wilson_interval(k, m)),
