@@ -105,3 +105,29 @@ def test_cli_overrides_parse_yaml_values_and_dotted_keys():
     hp = apply_overrides({"policy_kwargs": {"net_arch": [64], "activation_fn": "tanh"}},
                          {"policy_kwargs.activation_fn": "relu", "gamma": 0.99})
     assert hp == {"policy_kwargs": {"net_arch": [64], "activation_fn": "relu"}, "gamma": 0.99}
+
+
+def test_the_pinpoint_throttle_entry_is_the_measured_fine_tune_with_a_throttle():
+    """@robust_throttle is @robust_finetune (the same schedule, statistics and capped
+    updates) with the throttle channel, the widening of the nominal policy's action head by
+    one throttle channel at full thrust with the angles' exploration σ, one run (no race) and
+    the length it was measured at: the recipe of docs/notes/issue-31.md, not a variant of it."""
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401  (registers the ids)
+
+    env_id = "LunarPinpointLanding-v2"
+    path = default_hyperparams_path("ppo")
+    finetune = load_hyperparams(path, env_id, "robust_finetune")
+    throttle = load_hyperparams(path, env_id, "robust_throttle")
+    changed = {k for k in finetune.keys() | throttle.keys() if finetune.get(k) != throttle.get(k)}
+    assert changed == {"env_kwargs", "added_action_init", "seed_race", "n_timesteps"}
+    assert throttle["env_kwargs"] == {**finetune["env_kwargs"], "throttle_channel": True}
+    assert throttle["seed_race"] is None and finetune["seed_race"]
+    assert throttle["n_timesteps"] > finetune["n_timesteps"]
+    n_nominal = gym.make(env_id).action_space.shape[0]
+    n_throttled = gym.make(env_id, throttle_channel=True).action_space.shape[0]
+    added = throttle["added_action_init"]
+    assert len(added["action"]) == len(added["log_std"]) == n_throttled - n_nominal == 1
+    assert added["action"] == [1.0]  # full thrust: the widened policy flies as the nominal one
+    assert added["log_std"] == [finetune["policy_kwargs"]["log_std_init"]]

@@ -1,11 +1,13 @@
 """Issue 31: a campaign's robustness curves with the seeds of one configuration drawn together.
 
-``python docs/notes/scripts/issue-31-grouped-curve.py CAMPAIGN_JSON OUT_PNG GROUP=PREFIX ...``
+``python docs/notes/scripts/issue-31-grouped-curve.py JSON[,JSON...] OUT_PNG GROUP=PREFIX ...``
 
 Each ``GROUP=PREFIX`` draws, in one colour and under the label ``GROUP``, every law of the
 campaign JSON (``python -m agents.campaign --json``) whose name starts with ``PREFIX``; the
 laws no prefix matches are left out. A campaign's own plot (``robustness.png``) draws one
-colour per law, which repeats after ten laws.
+colour per law, which repeats after ten laws. Several campaign JSONs (comma-separated; of
+one env and one uncertainty set, e.g. a throttled and an unthrottled campaign of the same
+cases) are drawn together; a law name in two of them is refused.
 """
 
 from __future__ import annotations
@@ -36,10 +38,26 @@ def grouped_curves(summary: dict, groups: list[tuple[str, str]]) -> dict[str, li
     return out
 
 
+def merged_summaries(summaries: list[dict]) -> dict:
+    """One summary whose robustness curves are those of every summary given. Raises
+    ``ValueError`` for summaries of different envs or uncertainty sets, or a law in two."""
+    first = summaries[0]
+    curves: dict[str, list] = {}
+    for s in summaries:
+        if (s["env"], s["uncertainty"]) != (first["env"], first["uncertainty"]):
+            raise ValueError(f"campaigns of {s['env']} / {s['uncertainty']!r} and "
+                             f"{first['env']} / {first['uncertainty']!r} cannot share a plot")
+        for name, curve in s["robustness_curve"].items():
+            if name in curves:
+                raise ValueError(f"law {name!r} is in two of the campaigns")
+            curves[name] = curve
+    return {**first, "robustness_curve": curves}
+
+
 def main(argv: list[str]) -> None:
     if len(argv) < 3:
         raise SystemExit(__doc__)
-    summary = json.loads(Path(argv[0]).read_text())
+    summary = merged_summaries([json.loads(Path(p).read_text()) for p in argv[0].split(",")])
     groups = []
     for item in argv[2:]:
         label, eq, prefix = item.partition("=")
