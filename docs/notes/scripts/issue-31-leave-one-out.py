@@ -12,8 +12,8 @@ law construction): ``UncertaintyModel`` draws the same standard normals whatever
 each case keeps every other error when one is zeroed, and the full-set row reproduces the
 campaign's success rate for those cases (flown in the campaign's chunks of 100). Only the
 env's verdict is counted (no omniscient reference is solved: that is the campaign's job), so
-a law costs seconds per variant.
-Prints success % per (law, variant) and writes the table as JSON (atomically) with ``--json``.
+a law costs seconds per variant. Prints success % per (law, variant) and writes the table as
+JSON (atomically) with ``--json``.
 """
 
 from __future__ import annotations
@@ -38,11 +38,10 @@ VARIANTS: dict[str, dict] = {
     "no nav alt bias": {"nav_position_bias_m": (0.0, *_STD.nav_position_bias_m[1:])},
     "no thrust err": {"thrust_scale": 0.0},
     "neither": {"nav_position_bias_m": (0.0, *_STD.nav_position_bias_m[1:]),
-                           "thrust_scale": 0.0},
+                "thrust_scale": 0.0},
     "no navigation": {"nav_position_bias_m": Z3, "nav_velocity_bias_m_s": Z3,
-                             "nav_position_noise_m": Z3, "nav_velocity_noise_m_s": Z3},
-    "no plant": {"thrust_scale": 0.0, "isp_scale": 0.0, "misalignment_rad": 0.0,
-                        "mass_kg": 0.0},
+                      "nav_position_noise_m": Z3, "nav_velocity_noise_m_s": Z3},
+    "no plant": {"thrust_scale": 0.0, "isp_scale": 0.0, "misalignment_rad": 0.0, "mass_kg": 0.0},
     "no entry": {"entry_position_m": Z3, "entry_velocity_m_s": Z3},
 }
 
