@@ -125,8 +125,9 @@ def test_the_pinpoint_throttle_entry_is_the_measured_fine_tune_with_a_throttle()
     assert throttle["env_kwargs"] == {**finetune["env_kwargs"], "throttle_channel": True}
     assert throttle["seed_race"] is None and finetune["seed_race"]
     assert throttle["n_timesteps"] > finetune["n_timesteps"]
-    n_nominal = gym.make(env_id).action_space.shape[0]
-    n_throttled = gym.make(env_id, throttle_channel=True).action_space.shape[0]
+    with gym.make(env_id) as nominal, gym.make(env_id, throttle_channel=True) as throttled:
+        n_nominal = nominal.action_space.shape[0]
+        n_throttled = throttled.action_space.shape[0]
     added = throttle["added_action_init"]
     assert len(added["action"]) == len(added["log_std"]) == n_throttled - n_nominal == 1
     assert added["action"] == [1.0]  # full thrust: the widened policy flies as the nominal one

@@ -33,15 +33,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--cases", type=int, default=40)
     p.add_argument("--uncertainty", default="none", help="none, standard or stress")
     args = p.parse_args(argv)
-    kwargs = {**ENV_KWARGS, "uncertainty": args.uncertainty}
-    print(f"{'law':36s} success  throttle p5    p50    p95  share >= 99.5 %")
     planned = [spec for spec in args.laws if spec.split(":")[0] in PLANNED_LAWS]
     if planned:
         p.error(f"{planned}: laws that plan from the per-case optimum are not flown here; "
                 f"give ppo:RUN, apollo, zem-zev, ...")
+    kwargs = {**ENV_KWARGS, "uncertainty": args.uncertainty}
+    ctx = LawContext(env_id=ENV_ID, env_kwargs=dict(ENV_KWARGS), scenario=None,
+                     nominal_optimum=None)
+    print(f"{'law':36s} success  throttle p5    p50    p95  share >= 99.5 %")
     for spec in args.laws:
-        ctx = LawContext(env_id=ENV_ID, env_kwargs=dict(ENV_KWARGS), scenario=None,
-                         nominal_optimum=None)
         law = build_law(spec, ctx)
         ro = fly(ENV_ID, law, args.cases, seed=0, env_kwargs=kwargs, record=range(args.cases))
         # the env clips a finite action into [-1, 1] before mapping it
