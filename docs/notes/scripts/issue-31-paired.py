@@ -1,0 +1,68 @@
+"""Issue 31: two laws paired on a campaign's cases, and each law's landings by engine error.
+
+``python docs/notes/scripts/issue-31-paired.py CASES_CSV [--pairs 'A|B' ...] [--laws LAW ...]``
+
+Reads a campaign's ``cases.csv`` (``python -m agents.campaign ... --out DIR`` writes
+``DIR/cases.csv``; law names as its ``law`` column, e.g. ``ppo:thr4_ctrl_126M_s1``) and prints
+
+- per law, the success rate of the cases whose thrust draw is more than 1σ weak (below 0.98 of
+  nominal: `standard`'s σ is 2 %), within 1σ, and more than 1σ strong;
+- per pair ``A|B``, the discordant cases (only A lands / only B lands) and McNemar's exact
+  test on them (two-sided binomial test at 1/2), the paired comparison of the notes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from collections import defaultdict
+from pathlib import Path
+
+from scipy.stats import binomtest
+
+from lunar_env.uncertainty import get_uncertainty
+
+THRUST_SIGMA = get_uncertainty("standard").thrust_scale
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("cases_csv", type=Path)
+    p.add_argument("--pairs", nargs="*", default=[],
+                   help="LAW_A|LAW_B (law names hold ':', so '|' separates them)")
+    p.add_argument("--laws", nargs="*", default=None, help="laws to bin (default: all)")
+    args = p.parse_args(argv)
+    success: dict[str, dict[int, bool]] = defaultdict(dict)
+    thrust: dict[int, float] = {}
+    with args.cases_csv.open() as f:
+        for row in csv.DictReader(f):
+            case = int(row["case"])
+            success[row["law"]][case] = row["success"] == "True"
+            thrust[case] = float(row["thrust_scale"])
+    bins = {"weak > 1σ": lambda t: t < 1.0 - THRUST_SIGMA,
+            "within 1σ": lambda t: abs(t - 1.0) <= THRUST_SIGMA,
+            "strong > 1σ": lambda t: t > 1.0 + THRUST_SIGMA}
+    print(f"{'law':32s} " + " ".join(f"{b:>14s}" for b in bins))
+    for law in args.laws or sorted(success):
+        if law not in success:
+            raise SystemExit(f"law {law!r} is not in {args.cases_csv}; it has: "
+                             f"{', '.join(sorted(success))}")
+        cells = []
+        for test in bins.values():
+            hits = [s for c, s in success[law].items() if test(thrust[c])]
+            cells.append(f"{100.0 * sum(hits) / len(hits):7.1f} % ({len(hits)})")
+        print(f"{law:32s} " + " ".join(f"{c:>14s}" for c in cells))
+    for pair in args.pairs:
+        a, sep, b = pair.partition("|")
+        if not sep or a not in success or b not in success:
+            raise SystemExit(f"pair {pair!r}: give two laws of {args.cases_csv} as 'A|B'")
+        only_a = sum(success[a][c] and not success[b][c] for c in success[a])
+        only_b = sum(success[b][c] and not success[a][c] for c in success[a])
+        pvalue = binomtest(only_a, only_a + only_b).pvalue if only_a + only_b else 1.0
+        print(f"{a} vs {b}: only the first lands {only_a}, only the second {only_b}, "
+              f"McNemar p = {pvalue:.2g}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
