@@ -6,6 +6,9 @@ A *law spec* is a short string, ``NAME[:ARG][:KEY=VALUE[,KEY=VALUE...]]``::
     dagger:runs/imitation/LunarSoftLanding-v0_dagger   an imitation run (bc, dagger)
     open-loop                               each case's optimum (nominal plant), replayed
     feedback                                the family's re-planning expert (Pontryagin / GPM)
+    feedback:thrust_reserve=0.05,stop_above_m=4,estimate_thrust=1
+                                            pinpoint, throttled: the expert with a thrust
+                                            reserve (:mod:`agents.experts.laws`)
     apollo                                  explicit guidance: Apollo (k_r = 12), ``zem-zev``
                                             (k_r = 6), ``gravity-turn``
     apollo:kr=10,tgo_margin=0.02,lead=2.2   a law with options (syntax and options of the

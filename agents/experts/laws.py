@@ -10,6 +10,16 @@ from agents.common.law import GuidanceLaw
 __all__ = ["open_loop_from_spec", "feedback_from_spec"]
 
 
+def _flag(text: str) -> bool:
+    """A boolean option: 1/true/yes or 0/false/no."""
+    t = str(text).strip().lower()
+    if t in ("1", "true", "yes"):
+        return True
+    if t in ("0", "false", "no"):
+        return False
+    raise ValueError(f"{text!r} is not 1/true/yes or 0/false/no")
+
+
 def open_loop_from_spec(spec, context) -> GuidanceLaw:
     """``open-loop``: the family's replay of each case's nominal-plant optimum from the
     navigated start (``context.nominal_optimum()``). No options."""
@@ -26,11 +36,37 @@ def open_loop_from_spec(spec, context) -> GuidanceLaw:
 
 def feedback_from_spec(spec, context) -> GuidanceLaw:
     """``feedback``: the family's closed-loop expert (planar: Pontryagin re-planning; pinpoint:
-    compiled Pontryagin re-planning) on the navigation solution and the nominal model. No
-    options."""
-    spec.require_known_options(())
+    compiled Pontryagin re-planning) on the navigation solution and the nominal model.
+    Option ``thrust_reserve=R`` (pinpoint, throttled env): plan and fly at throttle 1 − R,
+    full thrust when long, 1 − 2R when short by more than ``switch_m=50`` m; the extremals
+    stop ``stop_above_m=0`` m above the target; ``estimate_thrust=1`` scales the throttle by
+    the engine's estimated thrust
+    (:class:`agents.experts.pinpoint.expert.PinpointReserveExpert`)."""
+    spec.require_known_options(("thrust_reserve", "switch_m", "stop_above_m",
+                                "estimate_thrust"))
     if spec.argument is not None:
         raise ValueError(f"law {spec.text!r} takes no argument")
+    reserve = spec.option("thrust_reserve", float, None)
+    if reserve is None and {"switch_m", "stop_above_m", "estimate_thrust"} & set(spec.options):
+        raise ValueError(f"law {spec.text!r}: switch_m, stop_above_m and estimate_thrust are "
+                         "options of thrust_reserve")
+    if reserve is not None:
+        from agents.experts.pinpoint.expert import PinpointReserveExpert
+        from lunar_env.scenarios import PinpointScenario
+
+        if not isinstance(context.scenario, PinpointScenario):
+            raise ValueError(f"law {spec.text!r}: thrust_reserve is built for the pinpoint "
+                             f"envs (LunarPinpointLanding-v*), not {context.env_id}")
+        if not context.env_kwargs.get("throttle_channel", False):
+            raise ValueError(f"law {spec.text!r}: thrust_reserve needs the throttle channel "
+                             "(--env-kwargs '{\"throttle_channel\": true}')")
+        law = PinpointReserveExpert(context.scenario, reserve,
+                                    switch_m=spec.option("switch_m", float, 50.0),
+                                    stop_above_m=spec.option("stop_above_m", float, 0.0),
+                                    estimate_thrust=spec.option("estimate_thrust", _flag,
+                                                                False))
+        law.name = spec.text
+        return law
     law = family_of(context.scenario).expert_law(context.scenario)
     law.name = "feedback"
     return law

@@ -382,7 +382,9 @@ class PinpointFeedback:
     the nominal extremal's costates, then a few crude guesses (λ_v along the velocity, λ_r
     radial, tgo from the rocket equation).
 
-    Per-row status (:attr:`last_status`): see the ``STATUS_*`` constants. ``hold_s``: below
+    Per-row status (:attr:`last_status`): see the ``STATUS_*`` constants; per-row
+    :attr:`last_beyond_m`: how far (m, along the track) beyond the target the flown extremal
+    stops (> 0 long, < 0 short, ~0 on the target, NaN without one). ``hold_s``: below
     this time to go the shooting is ill-conditioned (the costates grow like 1/tgo) and the
     previous extremal is flown open loop.
 
@@ -395,10 +397,16 @@ class PinpointFeedback:
     hold_s : float
     max_iter : int
         Newton iterations per solve.
+    nominal_guess : ndarray (8,) or None
+        Costates z of a neighbouring problem's nominal extremal (e.g. the nominal engine's,
+        for a derated one) tried first for this scenario's nominal extremal, and kept as the
+        cold-start guess if that extremal does not exist (the target is out of reach of this
+        engine from the nominal start). None: the crude guesses only.
     """
 
     def __init__(self, scenario, *, step_s: float = 4.0, hold_s: float = 3.0,
-                 max_iter: int = 25, gate_floor_range_m: float | None = 10_000.0) -> None:
+                 max_iter: int = 25, gate_floor_range_m: float | None = 10_000.0,
+                 nominal_guess: np.ndarray | None = None) -> None:
         require_finite("hold_s", hold_s)
         if not hold_s >= 0:
             raise ValueError(f"hold_s = {hold_s!r} must be >= 0")
@@ -413,8 +421,11 @@ class PinpointFeedback:
         self.n_raised = 0
         self._memory: dict[int, tuple] = {}  # row -> (y (13,), t_s, tgo_s, σ)
         self._nominal: np.ndarray | None = None
+        self._nominal_guess = (None if nominal_guess is None else
+                               np.array(nominal_guess, dtype=np.float64).reshape(8))
         self.last_status: list[str] = []
         self.last_tgo_s = np.empty(0)
+        self.last_beyond_m = np.empty(0)
         self.n_solves = 0
         self.n_failed = 0
 
@@ -438,16 +449,20 @@ class PinpointFeedback:
         return [np.r_[s * up, vhat, tgo] for s in (1.0, 2.0, 0.5, 4.0)]
 
     def nominal_costates(self) -> np.ndarray:
-        """z = (λ_r, λ_v, tgo) of the extremal from the scenario's nominal start."""
+        """z = (λ_r, λ_v, tgo) of the extremal from the scenario's nominal start (or, where
+        it does not exist, the ``nominal_guess`` given)."""
         if self._nominal is None:
             x0 = self.scenario.state_nd(scaling=self.scenario.scaling())
-            for g in self._crude_guesses(x0):
+            given = [] if self._nominal_guess is None else [self._nominal_guess.copy()]
+            for g in given + self._crude_guesses(x0):
                 sol = solve_extremal(self.k, x0, g, step_s=self.step_s, max_iter=60)
                 if sol.converged:
                     self._nominal = sol.z
                     break
-            else:  # pragma: no cover  (measured: the first crude guess converges)
-                raise RuntimeError("no extremal from the nominal start")
+            else:
+                if not given:  # pragma: no cover  (measured: the first crude guess converges)
+                    raise RuntimeError("no extremal from the nominal start")
+                self._nominal = given[0]
         return self._nominal
 
     def solve(self, state_nd: np.ndarray, guess: np.ndarray | None = None
@@ -542,9 +557,10 @@ class PinpointFeedback:
         out = np.empty((len(x), 2))
         status = []
         tgo = np.full(len(x), np.nan)
+        beyond = np.full(len(x), np.nan)
         for i in range(len(x)):
             if act[i]:
-                y_law, tgo[i], st = self._law(i, x[i], float(t[i]))
+                y_law, tgo[i], st, beyond[i] = self._law(i, x[i], float(t[i]))
             else:
                 y_law, st = None, STATUS_FALLBACK
             if y_law is not None:
@@ -555,10 +571,12 @@ class PinpointFeedback:
             status.append(st)
         self.last_status = status
         self.last_tgo_s = tgo
+        self.last_beyond_m = beyond
         return out
 
     def _law(self, i: int, x: np.ndarray, t: float):
-        """(state–costate to fly from now, time to go s, status) of row ``i``."""
+        """(state–costate to fly from now, time to go s, status, metres beyond the target of
+        the stop flown to: > 0 long, < 0 short, NaN without an extremal) of row ``i``."""
         T = self.k.time_s
         mem = self._memory.get(i)
         if mem is not None and t < mem[1] - 1e-9:  # the clock went back: a new episode
@@ -566,14 +584,16 @@ class PinpointFeedback:
             mem = None
         prev = None
         tgo_prev = math.nan
+        beyond_prev = math.nan
         if mem is not None:  # the previous extremal, advanced to now
             y_mem, t_mem, tgo_mem, sigma_mem = mem
             el = t - t_mem
             tgo_prev = tgo_mem - el
+            beyond_prev = sigma_mem * self.k.c[_RG] * self.k.length_m
             prev = (_advance(y_mem, el / T, max(1, int(math.ceil(el / 1.0))), self.k.c)[0]
                     if el > 0 else y_mem.copy())
             if tgo_prev <= self.hold_s:
-                return prev, tgo_prev, STATUS_HOLD
+                return prev, tgo_prev, STATUS_HOLD, beyond_prev
         guess = None if prev is None else np.r_[prev[7:13], tgo_prev / T, sigma_mem]
         sol = self.solve(x, guess)
         if sol is not None:
@@ -581,10 +601,10 @@ class PinpointFeedback:
             y = np.r_[x, sol.z[:6] / math.sqrt(float(sol.z[3:6] @ sol.z[3:6]))]
             self._memory[i] = (y, t, sol.tgo_s, float(sol.z[7]))
             return y, sol.tgo_s, (STATUS_OPTIMAL if abs(sol.beyond_m) < TARGET_REACHED_M
-                                  else STATUS_NEAREST)
+                                  else STATUS_NEAREST), sol.beyond_m
         if prev is not None:
-            return prev, tgo_prev, STATUS_STALE
-        return None, math.nan, STATUS_FALLBACK
+            return prev, tgo_prev, STATUS_STALE, beyond_prev
+        return None, math.nan, STATUS_FALLBACK, math.nan
 
     def _dip_m(self, x: np.ndarray, sol: ExtremalSolution, k: FeedbackConstants) -> float:
         """Depth (m) of the extremal's path under the gate sphere where the gate counts

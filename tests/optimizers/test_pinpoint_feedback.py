@@ -138,3 +138,26 @@ def test_bad_guess_is_refused():
     x0 = SC.state_nd(scaling=SC.scaling())
     with pytest.raises(ValueError, match="guess"):
         pf.solve_extremal(K, x0, np.r_[np.zeros(6), 0.5])
+
+
+def test_the_stop_flown_to_is_reported_beyond_or_on_the_target():
+    # issue 31: the reserve law picks its engine by the side its extremal misses on
+    import dataclasses
+
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+
+    sc = gym.make("LunarPinpointLanding-v2").unwrapped.scenario
+    x0 = sc.state_nd(scaling=sc.scaling())
+    full = pf.PinpointFeedback(sc)
+    full(x0[None], [0.0], 2.0)
+    assert full.last_status == ["optimal"] and abs(full.last_beyond_m[0]) < pf.TARGET_REACHED_M
+    weak = dataclasses.replace(sc, vehicle=dataclasses.replace(
+        sc.vehicle, thrust_n=0.93 * sc.vehicle.thrust_n))
+    fb = pf.PinpointFeedback(weak, nominal_guess=full.nominal_costates())
+    fb(x0[None], [0.0], 2.0)
+    # measured: 93 % of the thrust stops ~1.5 km beyond the target from the nominal start
+    assert fb.last_status == ["nearest"] and 1000.0 < fb.last_beyond_m[0] < 2500.0
+    fb(x0[None], [2.0], 2.0, active=[False])
+    assert fb.last_status == ["fallback"] and np.isnan(fb.last_beyond_m[0])
