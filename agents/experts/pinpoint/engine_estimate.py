@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from lunar_env.dynamics import THROTTLE3, moon3d_rhs
+from lunar_env import integrators as integ
+from lunar_env.dynamics import THROTTLE3
 
 __all__ = ["ThrustScaleEstimator"]
 
@@ -69,15 +70,10 @@ class ThrustScaleEstimator:
         return np.where(ok, self._sum_dr / np.where(ok, self._sum_dd, 1.0), 1.0)
 
     def _advance(self, state: np.ndarray, control: np.ndarray, dt_nd: np.ndarray) -> np.ndarray:
-        h = (dt_nd / self.substeps)[:, None]
-        x = state.copy()
-        for _ in range(self.substeps):
-            k1 = moon3d_rhs(x, control, self.params)
-            k2 = moon3d_rhs(x + 0.5 * h * k1, control, self.params)
-            k3 = moon3d_rhs(x + 0.5 * h * k2, control, self.params)
-            k4 = moon3d_rhs(x + h * k3, control, self.params)
-            x = x + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        return x
+        """States (N, 7) after ``dt_nd`` (N,) holding ``control`` (N, 3): the env's RK4."""
+        held = integ.PiecewisePolynomial.constant(control, np.zeros(len(dt_nd)), dt_nd)
+        return integ.integrate(integ.MOON3D, state, t0_nd=0.0, dt_nd=dt_nd / self.substeps,
+                               n_steps=self.substeps, control=held, params=self.params).y_end
 
     def observe(self, state_nd: np.ndarray, t_s: np.ndarray, active: np.ndarray) -> None:
         """Add the response to the previous decision's controls of the landers still flying."""
