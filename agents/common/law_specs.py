@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 __all__ = ["LawSpec", "LawContext", "LAW_ENTRY_POINTS", "law_names", "build_law",
-           "parse_law_spec"]
+           "parse_law_spec", "flag"]
 
 #: law name -> ``"module:function"`` of its factory ``factory(spec, context) -> GuidanceLaw``
 LAW_ENTRY_POINTS: dict[str, str] = {
@@ -47,6 +47,17 @@ LAW_ENTRY_POINTS: dict[str, str] = {
     "gravity-turn": "agents.experts.explicit.specs:gravity_turn_from_spec",
     "convex": "agents.experts.convex:convex_from_spec",
 }
+
+
+def flag(text: str) -> bool:
+    """A boolean option's value (``spec.option(key, flag, default)``): 1/true/yes/on or
+    0/false/no/off, any case; ``ValueError`` otherwise."""
+    t = str(text).strip().lower()
+    if t in ("1", "true", "yes", "on"):
+        return True
+    if t in ("0", "false", "no", "off"):
+        return False
+    raise ValueError(f"{text!r} is not 1/true/yes/on or 0/false/no/off")
 
 
 @dataclass(frozen=True)

@@ -6,18 +6,9 @@ from __future__ import annotations
 
 from agents.common.families import family_of
 from agents.common.law import GuidanceLaw
+from agents.common.law_specs import flag
 
 __all__ = ["open_loop_from_spec", "feedback_from_spec"]
-
-
-def _flag(text: str) -> bool:
-    """A boolean option: 1/true/yes or 0/false/no."""
-    t = str(text).strip().lower()
-    if t in ("1", "true", "yes"):
-        return True
-    if t in ("0", "false", "no"):
-        return False
-    raise ValueError(f"{text!r} is not 1/true/yes or 0/false/no")
 
 
 def open_loop_from_spec(spec, context) -> GuidanceLaw:
@@ -63,7 +54,7 @@ def feedback_from_spec(spec, context) -> GuidanceLaw:
         law = PinpointReserveExpert(context.scenario, reserve,
                                     switch_m=spec.option("switch_m", float, 50.0),
                                     stop_above_m=spec.option("stop_above_m", float, 0.0),
-                                    estimate_thrust=spec.option("estimate_thrust", _flag,
+                                    estimate_thrust=spec.option("estimate_thrust", flag,
                                                                 False))
         law.name = spec.text
         return law

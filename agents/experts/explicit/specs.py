@@ -35,20 +35,13 @@ env's: ``throttle_channel`` in the env keyword arguments.
 from __future__ import annotations
 
 from agents.common.law import GuidanceLaw
+from agents.common.law_specs import flag
 from agents.experts.explicit.guidance import K_R_APOLLO, K_R_ZEM_ZEV
 from agents.experts.explicit.laws import AugmentedApolloLaw, GravityTurnLaw
 
 __all__ = ["apollo_from_spec", "zem_zev_from_spec", "gravity_turn_from_spec"]
 
 _OPTIONS = ("kr", "tgo_margin", "lead", "tgo", "rotation", "terminal", "aim")
-
-
-def _flag(text: str) -> bool:
-    if text.strip().lower() in ("1", "true", "yes", "on"):
-        return True
-    if text.strip().lower() in ("0", "false", "no", "off"):
-        return False
-    raise ValueError("expected 1/0 (true/false)")
 
 
 def _no_argument(spec) -> None:
@@ -66,7 +59,7 @@ def _augmented(spec, default_k_r: float) -> GuidanceLaw:
             tgo_margin=spec.option("tgo_margin", float, 0.0),
             lead_s=spec.option("lead", float, 0.0),
             tgo_rule=spec.option("tgo", str, None),
-            include_rotation=spec.option("rotation", _flag, True),
+            include_rotation=spec.option("rotation", flag, True),
             terminal_s=spec.option("terminal", float, 0.0),
             aim_above_m=spec.option("aim", float, 0.0),
             name=spec.text or spec.name)
@@ -88,5 +81,5 @@ def gravity_turn_from_spec(spec, context) -> GuidanceLaw:
     """``gravity-turn[:rotation=1|0]``."""
     spec.require_known_options(("rotation",))
     _no_argument(spec)
-    return GravityTurnLaw(include_rotation=spec.option("rotation", _flag, True),
+    return GravityTurnLaw(include_rotation=spec.option("rotation", flag, True),
                           name=spec.text or spec.name)

@@ -88,8 +88,11 @@ class ThrustScaleEstimator:
         dt_nd = dt_s[rows] / self.time_s
         coast = u0.copy()
         coast[:, THROTTLE3] = 0.0
-        v_coast = self._advance(x0, coast, dt_nd)[:, 3:6]
-        d = self._advance(x0, u0, dt_nd)[:, 3:6] - v_coast  # the model's thrust Δv
+        n = len(x0)  # the commanded and the thrust-free steps in one batch
+        v = self._advance(np.concatenate([x0, x0]), np.concatenate([u0, coast]),
+                          np.concatenate([dt_nd, dt_nd]))[:, 3:6]
+        v_coast = v[n:]
+        d = v[:n] - v_coast  # the model's thrust Δv
         r = np.asarray(state_nd, dtype=np.float64)[rows, 3:6] - v_coast  # the engine's
         s = self.scale[rows]
         keep = np.linalg.norm(r - s[:, None] * d, axis=1) <= self.gate_nd
