@@ -31,16 +31,18 @@ def feedback_from_spec(spec, context) -> GuidanceLaw:
     Option ``thrust_reserve=R`` (pinpoint, throttled env): plan and fly at throttle 1 − R,
     full thrust when long, 1 − 2R when short by more than ``switch_m=50`` m; the extremals
     stop ``stop_above_m=0`` m above the target; ``estimate_thrust=1`` scales the throttle by
-    the engine's estimated thrust
+    the engine's estimated thrust; ``terminal_window=1`` flies the last seconds as a window
+    that crosses the gate below 5 m/s over a band of heights, instead of the fall from the stop
     (:class:`agents.experts.pinpoint.expert.PinpointReserveExpert`)."""
     spec.require_known_options(("thrust_reserve", "switch_m", "stop_above_m",
-                                "estimate_thrust"))
+                                "estimate_thrust", "terminal_window"))
     if spec.argument is not None:
         raise ValueError(f"law {spec.text!r} takes no argument")
     reserve = spec.option("thrust_reserve", float, None)
-    if reserve is None and {"switch_m", "stop_above_m", "estimate_thrust"} & set(spec.options):
-        raise ValueError(f"law {spec.text!r}: switch_m, stop_above_m and estimate_thrust are "
-                         "options of thrust_reserve")
+    if reserve is None and {"switch_m", "stop_above_m", "estimate_thrust",
+                            "terminal_window"} & set(spec.options):
+        raise ValueError(f"law {spec.text!r}: switch_m, stop_above_m, estimate_thrust and "
+                         "terminal_window are options of thrust_reserve")
     if reserve is not None:
         from agents.experts.pinpoint.expert import PinpointReserveExpert
         from lunar_env.scenarios import PinpointScenario
@@ -55,6 +57,8 @@ def feedback_from_spec(spec, context) -> GuidanceLaw:
                                     switch_m=spec.option("switch_m", float, 50.0),
                                     stop_above_m=spec.option("stop_above_m", float, 0.0),
                                     estimate_thrust=spec.option("estimate_thrust", flag,
+                                                                False),
+                                    terminal_window=spec.option("terminal_window", flag,
                                                                 False))
         law.name = spec.text
         return law

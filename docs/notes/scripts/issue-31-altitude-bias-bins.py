@@ -1,13 +1,16 @@
 """Issue 31: a pinpoint campaign's success by the sign and size of each case's navigation
 altitude bias.
 
-``python docs/notes/scripts/issue-31-altitude-bias-bins.py CAMPAIGN_DIR``
+``python docs/notes/scripts/issue-31-altitude-bias-bins.py CAMPAIGN_DIR [--at-gate]``
 
 ``CAMPAIGN_DIR`` is a campaign's ``--out`` (``campaign.json`` and ``cases.csv``). Each case's
 navigation position bias is re-drawn as the campaign drew it (a vector env of each chunk's
 cases reset with ``seed + first``: :func:`agents.evaluation.campaign._starts`; nothing is
 flown), and every law's success rate is printed per bin of the up component (m; navigated
 altitude = true altitude + bias). Only campaigns at error scale 1 of their model.
+``--at-gate``: the bias where the pinpoint v2 gate is (2 km up, under the radar: the bias times
+:func:`lunar_env.uncertainty.radar_weight` there, 1/30 under ``standard``), in bins of metres
+there (the terminal's view: a fall from rest crosses below 5 m/s from 0-7.7 m).
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ from pathlib import Path
 import numpy as np
 
 BINS_M = (-400.0, -100.0, -50.0, -20.0, 0.0, 20.0, 50.0, 100.0, 400.0)
+GATE_BINS_M = (-30.0, -8.0, -6.0, -4.0, -2.0, 0.0, 2.0, 4.0, 6.0, 8.0, 30.0)
+GATE_ALTITUDE_M = 2000.0
 
 
 def altitude_bias_m(summary: dict) -> np.ndarray:
@@ -38,13 +43,22 @@ def altitude_bias_m(summary: dict) -> np.ndarray:
 
 
 def main(argv: list[str]) -> None:
+    at_gate = "--at-gate" in argv
+    argv = [a for a in argv if a != "--at-gate"]
     if len(argv) != 1:
         raise SystemExit(__doc__)
     out_dir = Path(argv[0])
     summary = json.loads((out_dir / "campaign.json").read_text())
     bias = altitude_bias_m(summary)
+    bins = BINS_M
+    if at_gate:
+        from lunar_env.uncertainty import UncertaintyModel, radar_weight
+
+        model = UncertaintyModel(**summary["uncertainty_model"])
+        bias = bias * float(radar_weight(model, np.array([GATE_ALTITUDE_M]))[0][0])
+        bins = GATE_BINS_M
     rows = list(csv.DictReader((out_dir / "cases.csv").open()))
-    edges = list(zip(BINS_M[:-1], BINS_M[1:], strict=True))
+    edges = list(zip(bins[:-1], bins[1:], strict=True))
     print("altitude bias (m)      " + "".join(f"{f'[{lo:g}, {hi:g})':>13s}" for lo, hi in edges))
     counts = [int(((bias >= lo) & (bias < hi)).sum()) for lo, hi in edges]
     print("cases                  " + "".join(f"{c:>13d}" for c in counts))

@@ -69,6 +69,9 @@ def test_a_derated_engine_out_of_reach_of_the_target_cold_starts_from_the_given_
     (ENV_ID, {"throttle_channel": True}, "feedback:thrust_reserve=0.05,switch_m=nan", ">= 0"),
     (ENV_ID, {"throttle_channel": True}, "feedback:thrust_reserve=0.05,estimate_thrust=maybe",
      "not valid"),
+    (ENV_ID, {"throttle_channel": True}, "feedback:terminal_window=1", "options of thrust_reserve"),
+    (ENV_ID, {"throttle_channel": True}, "feedback:thrust_reserve=0.05,terminal_window=2",
+     "not valid"),
 ])
 def test_a_bad_reserve_spec_is_refused_by_name(env_id, kwargs, text, match):
     context = LawContext(env_id=env_id, env_kwargs=kwargs, scenario=_scenario(env_id))
@@ -164,3 +167,30 @@ def test_a_stop_above_the_gate_falls_the_rest_at_the_free_fall_speed():
     out = fly(ENV_ID, law, 1, seed=0, env_kwargs=THROTTLED)
     assert out.is_success[0]
     assert out.touchdown_speed_m_s[0] == pytest.approx(np.sqrt(2 * 1.62 * 4.0), abs=0.15)
+
+
+def test_the_terminal_window_lands_the_nominal_case_without_the_fall():
+    law = PinpointReserveExpert(_scenario(), 0.05, stop_above_m=4.0, terminal_window=True)
+    out = fly(ENV_ID, law, 1, seed=0, env_kwargs=THROTTLED, record=[0])
+    assert out.is_success[0]
+    throttle = (out.records[0]["action"][:, 2] + 1.0) / 2.0
+    assert 2 <= law.decisions["window"] <= 6  # the last seconds, re-planned every decision
+    assert sum(law.decisions.values()) == len(throttle)  # each decision counted once
+    # after its first step (which may brake hard), the window's throttle is well below the
+    # extremal's 95 %: the weave's third of the thrust
+    assert np.all(throttle[1 - law.decisions["window"]:] < 0.9)
+
+
+@pytest.mark.slow
+def test_the_terminal_window_lands_altitude_errors_that_defeat_the_fall():
+    # navigated altitude 6 m (1.8σ) above or below the truth at the gate (a 180 m bias before
+    # the radar, times its weight 0.05 × 2000 / 3000): the fall from a stop 4 m up crosses
+    # braking below the gate, or falls 10 m (5.7 m/s); the window spans ±8 m
+    env_kwargs = dict(THROTTLED, uncertainty="standard")
+    pinned = {"errors": {"nav_position_bias_m": [[180.0, 0.0, 0.0], [-180.0, 0.0, 0.0]]}}
+    window = PinpointReserveExpert(_scenario(), 0.05, stop_above_m=12.0, terminal_window=True)
+    out = fly(ENV_ID, window, 2, seed=0, env_kwargs=env_kwargs, reset_options=pinned)
+    assert out.is_success.all(), (out.touchdown_speed_m_s, out.miss_distance_m)
+    fall = fly(ENV_ID, PinpointReserveExpert(_scenario(), 0.05, stop_above_m=4.0), 2, seed=0,
+               env_kwargs=env_kwargs, reset_options=pinned)
+    assert not fall.is_success.any(), (fall.touchdown_speed_m_s, fall.miss_distance_m)
