@@ -307,10 +307,9 @@ class PinpointReserveExpert(GuidanceLaw):
                 self._plans[i] = np.vstack([prev[1:], prev[-1:] * [1.0, 1.0, 0.0]])
             else:
                 continue
-            alpha, beta, thr = self._plans[i][0]
-            angles[i] = alpha, beta
-            actions[i] = action_from_angles(np.array([alpha]), np.array([beta]),
-                                            sc.alpha_bounds_rad, sc.beta_bounds_rad)[0]
-            throttle[i] = thr
+            angles[i], throttle[i] = self._plans[i][0, :2], self._plans[i][0, 2]
             windowed[i] = True
+        if windowed.any():
+            actions[windowed] = action_from_angles(angles[windowed, 0], angles[windowed, 1],
+                                                   sc.alpha_bounds_rad, sc.beta_bounds_rad)
         return windowed

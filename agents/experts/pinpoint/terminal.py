@@ -22,6 +22,7 @@ does not know: ``velocity_error_m_s``, ``accel_error_m_s2``).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,6 +34,7 @@ __all__ = ["TerminalWindow", "WindowPlan"]
 _FREE_TOP_M = 1.0e6
 
 
+@dataclass(frozen=True)
 class WindowPlan:
     """One solved window.
 
@@ -49,14 +51,10 @@ class WindowPlan:
         Steps before the window's first node (node ``approach + 1``, its top).
     """
 
-    __slots__ = ("margin_m", "controls", "n_steps", "approach")
-
-    def __init__(self, margin_m: float, controls: np.ndarray, n_steps: int,
-                 approach: int) -> None:
-        self.margin_m = float(margin_m)
-        self.controls = controls
-        self.n_steps = int(n_steps)
-        self.approach = int(approach)
+    margin_m: float
+    controls: np.ndarray
+    n_steps: int
+    approach: int
 
 
 class TerminalWindow:
@@ -221,7 +219,7 @@ class TerminalWindow:
                     # then the fall: throttle 0 (the attitude is held)
                     u = np.vstack([x[:-1].reshape(n, 3), np.zeros((self.steps + 1 - n, 3))])
                     u[n:, :2] = u[n - 1, :2]
-                    best = WindowPlan(x[-1], u, n, approach)
+                    best = WindowPlan(float(x[-1]), u, n, approach)
             if best is not None and previous is not None:
                 break  # the warm start converged: the other starts rarely do better
         return best
