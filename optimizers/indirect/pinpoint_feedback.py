@@ -371,6 +371,13 @@ STATUS_STALE = "stale"        # the solve failed: the previous extremal, advance
 STATUS_FALLBACK = "fallback"  # no extremal known: brake against the velocity
 
 
+def _thrust_scaled(k: FeedbackConstants, scale: float) -> FeedbackConstants:
+    """``k`` with its thrust multiplied by ``scale`` (same exhaust velocity: a throttle)."""
+    c = k.c.copy()
+    c[_T] *= scale
+    return dataclasses.replace(k, c=c)
+
+
 class PinpointFeedback:
     """Optimal feedback of the pinpoint landing: the extremal from each lander's current state.
 
@@ -412,6 +419,7 @@ class PinpointFeedback:
             raise ValueError(f"hold_s = {hold_s!r} must be >= 0")
         self.scenario = scenario
         self.k = feedback_constants(scenario)
+        self._k_scenario = self.k  # self.k is a row's engine during a call (thrust_scale)
         self.step_s = require_finite_positive("step_s", step_s)
         self.hold_s = float(hold_s)
         self.max_iter = int(max_iter)
@@ -455,7 +463,7 @@ class PinpointFeedback:
             x0 = self.scenario.state_nd(scaling=self.scenario.scaling())
             given = [] if self._nominal_guess is None else [self._nominal_guess.copy()]
             for g in given + self._crude_guesses(x0):
-                sol = solve_extremal(self.k, x0, g, step_s=self.step_s, max_iter=60)
+                sol = solve_extremal(self._k_scenario, x0, g, step_s=self.step_s, max_iter=60)
                 if sol.converged:
                     self._nominal = sol.z
                     break
@@ -543,32 +551,46 @@ class PinpointFeedback:
         return cur
 
     # -- the law -----------------------------------------------------------------------------
-    def __call__(self, states_nd, t_s, dt_s: float, active=None) -> np.ndarray:
+    def __call__(self, states_nd, t_s, dt_s: float, active=None,
+                 thrust_scale=None) -> np.ndarray:
         """Optimal (α, β) (rad), shape (B, 2), averaged over [t, t + dt_s], for normalised
         states (B, 7) at episode times ``t_s`` (B,). ``active`` (B,) bool: rows to solve (the
-        others get the braking fallback and keep their memory)."""
+        others get the braking fallback and keep their memory). ``thrust_scale`` (B,) or
+        scalar, > 0: each row's engine as a multiple of the scenario's thrust, same Isp (a
+        throttle setting, or the thrust a lander has estimated it has; None: 1); a row's
+        memory warm-starts across changes of its scale."""
         x = np.atleast_2d(np.asarray(states_nd, dtype=np.float64))
         t = np.broadcast_to(np.asarray(t_s, dtype=np.float64), (len(x),))
         if x.shape[1] != 7 or not np.all(np.isfinite(x)) or not np.all(np.isfinite(t)):
             raise ValueError(f"states_nd {x.shape} must be finite (B, 7) normalised pinpoint "
                              "states with finite times")
         require_finite_positive("dt_s", dt_s)
+        scale = np.broadcast_to(np.asarray(1.0 if thrust_scale is None else thrust_scale,
+                                           dtype=np.float64), (len(x),))
+        if not np.all(scale > 0.0) or not np.all(np.isfinite(scale)):  # NaN fails too
+            raise ValueError(f"thrust_scale = {thrust_scale!r} must be finite and > 0")
         act = np.ones(len(x), dtype=bool) if active is None else np.asarray(active, bool)
         out = np.empty((len(x), 2))
         status = []
         tgo = np.full(len(x), np.nan)
         beyond = np.full(len(x), np.nan)
-        for i in range(len(x)):
-            if act[i]:
-                y_law, tgo[i], st, beyond[i] = self._law(i, x[i], float(t[i]))
-            else:
-                y_law, st = None, STATUS_FALLBACK
-            if y_law is not None:
-                _, a, b = _advance(y_law, dt_s / self.k.time_s, 8, self.k.c)
-                out[i] = a, b
-            else:
-                out[i] = self._braking(x[i])
-            status.append(st)
+        k_nominal = self.k
+        try:
+            for i in range(len(x)):
+                # every solve, warm start and step of this row reads self.k: the row's engine
+                self.k = k_nominal if scale[i] == 1.0 else _thrust_scaled(k_nominal, scale[i])
+                if act[i]:
+                    y_law, tgo[i], st, beyond[i] = self._law(i, x[i], float(t[i]))
+                else:
+                    y_law, st = None, STATUS_FALLBACK
+                if y_law is not None:
+                    _, a, b = _advance(y_law, dt_s / self.k.time_s, 8, self.k.c)
+                    out[i] = a, b
+                else:
+                    out[i] = self._braking(x[i])
+                status.append(st)
+        finally:
+            self.k = k_nominal
         self.last_status = status
         self.last_tgo_s = tgo
         self.last_beyond_m = beyond

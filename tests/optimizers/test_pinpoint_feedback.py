@@ -161,3 +161,31 @@ def test_the_stop_flown_to_is_reported_beyond_or_on_the_target():
     assert fb.last_status == ["nearest"] and 1000.0 < fb.last_beyond_m[0] < 2500.0
     fb(x0[None], [2.0], 2.0, active=[False])
     assert fb.last_status == ["fallback"] and np.isnan(fb.last_beyond_m[0])
+
+
+def test_a_row_with_a_thrust_scale_flies_the_extremal_of_that_engine():
+    # issue 31: the reserve law plans its full engine with the thrust it estimated it has
+    import dataclasses
+
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+
+    sc = gym.make("LunarPinpointLanding-v2").unwrapped.scenario
+    x0 = sc.state_nd(scaling=sc.scaling())
+    strong = dataclasses.replace(sc, vehicle=dataclasses.replace(
+        sc.vehicle, thrust_n=1.03 * sc.vehicle.thrust_n))
+    alone = pf.PinpointFeedback(strong)
+    ang_alone = alone(x0[None], [0.0], 2.0)
+    fb = pf.PinpointFeedback(sc)
+    nominal = fb(x0[None], [0.0], 2.0).copy()
+    fb.reset()
+    both = fb(np.stack([x0, x0]), [0.0, 0.0], 2.0, thrust_scale=[1.03, 1.0])
+    np.testing.assert_allclose(both[0], ang_alone[0], atol=1e-9)
+    np.testing.assert_allclose(both[1], nominal[0], atol=1e-9)
+    np.testing.assert_allclose(fb.last_tgo_s[0], alone.last_tgo_s[0], rtol=1e-9)
+    assert fb.last_tgo_s[0] < fb.last_tgo_s[1]  # the stronger engine stops sooner
+    assert fb.k is fb._k_scenario  # the scenario's engine again after the call
+    for bad in (0.0, -1.0, np.nan):
+        with pytest.raises(ValueError, match="thrust_scale"):
+            fb(x0[None], [4.0], 2.0, thrust_scale=bad)

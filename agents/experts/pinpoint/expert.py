@@ -63,24 +63,25 @@ class PinpointPontryaginExpert(GuidanceLaw):
         self.feedback.gate_floor_range_m = computer.gate_range_m
 
     def angles(self, states_nd: np.ndarray, t_s: np.ndarray, dt_s: float,
-               active: np.ndarray | None = None) -> np.ndarray:
-        """(α, β) (rad), (B, 2), of the extremals from states (B, 7) at episode times (B,)."""
-        ang = self.feedback(states_nd, t_s, dt_s, active)
+               active: np.ndarray | None = None, thrust_scale=None) -> np.ndarray:
+        """(α, β) (rad), (B, 2), of the extremals from states (B, 7) at episode times (B,)
+        (``thrust_scale``: each row's engine / the scenario's, see :class:`PinpointFeedback`)."""
+        ang = self.feedback(states_nd, t_s, dt_s, active, thrust_scale)
         act = np.ones(len(ang), dtype=bool) if active is None else np.asarray(active, bool)
         for st, a in zip(self.feedback.last_status, act, strict=True):
             if a:
                 self.status_counts[st] = self.status_counts.get(st, 0) + 1
         return ang
 
-    def labels(self, state_nd: np.ndarray, t_s: np.ndarray, active: np.ndarray | None = None
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def labels(self, state_nd: np.ndarray, t_s: np.ndarray, active: np.ndarray | None = None,
+               thrust_scale=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The expert's decision at normalised states (B, 7) and episode times (B,) (s).
 
         Returns ``(angles, actions, is_label)``: (α, β) (rad) and the env actions (float32),
         both (B, 2), and (B,) bool: the row is active (``active``; None: all) and its status is
         one of :data:`PINPOINT_LABEL_STATUSES`. Call :meth:`reset` first.
         """
-        ang = self.angles(state_nd, t_s, self.computer.dt_s, active)
+        ang = self.angles(state_nd, t_s, self.computer.dt_s, active, thrust_scale)
         sc = self.scenario
         actions = action_from_angles(ang[:, 0], ang[:, 1], sc.alpha_bounds_rad,
                                      sc.beta_bounds_rad).astype(np.float32)
@@ -137,7 +138,8 @@ class PinpointReserveExpert(GuidanceLaw):
         (:class:`agents.experts.pinpoint.engine_estimate.ThrustScaleEstimator`) and divide
         the commanded throttle by it, so that the engine gives the thrust the plan assumed
         (up to full throttle): the reserve then absorbs a weak engine instead of the plan
-        drifting long until the switch.
+        drifting long until the switch. The full engine is then planned with the thrust
+        full throttle gives, ``min(1, scale)`` times the nominal.
     terminal_window : bool
         Fly the last seconds as a window (:class:`agents.experts.pinpoint.terminal.
         TerminalWindow`, re-planned every decision) instead of stopping and falling: from the
@@ -191,7 +193,7 @@ class PinpointReserveExpert(GuidanceLaw):
         if estimate_thrust:
             sc, k = self.full.scenario, self.full.feedback.k
             self.estimator = ThrustScaleEstimator(sc.params(sc.scaling()), k.time_s,
-                                                  k.velocity_m_s)
+                                                  k.velocity_m_s, k.mass_kg)
 
     def reset(self, computer: FlightComputer, case_ids: np.ndarray) -> None:
         """New flights; ``ValueError`` unless the env has a throttle channel."""
@@ -244,10 +246,17 @@ class PinpointReserveExpert(GuidanceLaw):
         long = active & ~short & ~(beyond <= self.switch_m)  # NaN (no extremal): long
         off = short | long
         throttle = np.full(len(active), 1.0 - self.thrust_reserve)
-        for rows, expert, level in ((long, self.full, 1.0),
-                                    (short, self.low, 1.0 - 2.0 * self.thrust_reserve)):
+        # the full engine is what full throttle gives: a weak engine's estimate (below 1) is
+        # all it has, so its extremal is planned with that thrust (a stronger one is throttled
+        # back to the nominal); planned at the nominal thrust, a lander 2.4 % weak believed
+        # itself short by 960 m, stretched its range and landed 1.5 km long (measured)
+        full_scale = (None if self.estimator is None
+                      else np.minimum(np.asarray(self.estimator.scale, dtype=float), 1.0))
+        for rows, expert, level, plan_scale in (
+                (long, self.full, 1.0, full_scale),
+                (short, self.low, 1.0 - 2.0 * self.thrust_reserve, None)):
             if rows.any():
-                ang, act, _ = expert.labels(nav.state_nd, nav.t_s, rows)
+                ang, act, _ = expert.labels(nav.state_nd, nav.t_s, rows, plan_scale)
                 angles[rows], actions[rows] = ang[rows], act[rows]
                 throttle[rows] = level
                 tgo[rows] = np.asarray(expert.feedback.last_tgo_s)[rows]
