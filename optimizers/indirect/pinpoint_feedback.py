@@ -567,8 +567,9 @@ class PinpointFeedback:
         require_finite_positive("dt_s", dt_s)
         scale = np.broadcast_to(np.asarray(1.0 if thrust_scale is None else thrust_scale,
                                            dtype=np.float64), (len(x),))
-        if not np.all(scale > 0.0) or not np.all(np.isfinite(scale)):  # NaN fails too
-            raise ValueError(f"thrust_scale = {thrust_scale!r} must be finite and > 0")
+        require_finite("thrust_scale", scale)
+        if not np.all(scale > 0.0):
+            raise ValueError(f"thrust_scale = {thrust_scale!r} is not allowed; it must be > 0")
         act = np.ones(len(x), dtype=bool) if active is None else np.asarray(active, bool)
         out = np.empty((len(x), 2))
         status = []

@@ -27,6 +27,7 @@ import numpy as np
 
 from lunar_env import integrators as integ
 from lunar_env.dynamics import THROTTLE3
+from lunar_env.validation import require_finite_positive
 
 __all__ = ["ThrustScaleEstimator"]
 
@@ -71,18 +72,16 @@ class ThrustScaleEstimator:
                  min_samples: int = 5, gate_m_s: float = 1.0,
                  velocity_noise_m_s: float = 0.14, mass_sigma_kg: float = 6.0,
                  thrust_sigma: float = 0.05, substeps: int = 4) -> None:
-        for name, value in (("velocity_noise_m_s", velocity_noise_m_s),
-                            ("mass_sigma_kg", mass_sigma_kg), ("thrust_sigma", thrust_sigma)):
-            if not float(value) > 0.0:  # NaN fails too
-                raise ValueError(f"{name} = {value!r} must be a number > 0")
         self.params = params
         self.time_s = float(time_s)
         self.gate_nd = float(gate_m_s) / float(velocity_m_s)
-        self.noise_nd = float(velocity_noise_m_s) / float(velocity_m_s)
+        self.noise_nd = (require_finite_positive("velocity_noise_m_s", velocity_noise_m_s)
+                         / float(velocity_m_s))
         self.mass_kg = float(mass_kg)
         # the prior, as information on (τ, δ_nd) about (1, 0)
-        self._prior = np.diag([1.0 / float(thrust_sigma) ** 2,
-                               (self.mass_kg / float(mass_sigma_kg)) ** 2])
+        self._prior = np.diag([
+            1.0 / require_finite_positive("thrust_sigma", thrust_sigma) ** 2,
+            (self.mass_kg / require_finite_positive("mass_sigma_kg", mass_sigma_kg)) ** 2])
         self.min_samples = int(min_samples)
         self.substeps = int(substeps)
         self.reset(0)
