@@ -1,7 +1,8 @@
 """Issue 31: a pinpoint campaign's success by the sign and size of each case's navigation
-altitude bias.
+altitude bias (or its downrange or crossrange position bias).
 
-``python docs/notes/scripts/issue-31-altitude-bias-bins.py CAMPAIGN_DIR [--at-gate]``
+``python docs/notes/scripts/issue-31-altitude-bias-bins.py CAMPAIGN_DIR [--at-gate]
+[--axis up|downrange|crossrange]``
 
 ``CAMPAIGN_DIR`` is a campaign's ``--out`` (``campaign.json`` and ``cases.csv``). Each case's
 navigation position bias is re-drawn as the campaign drew it (a vector env of each chunk's
@@ -11,6 +12,9 @@ altitude = true altitude + bias). Only campaigns at error scale 1 of their model
 ``--at-gate``: the bias where the pinpoint v2 gate is (2 km up, under the radar: the bias times
 :func:`lunar_env.uncertainty.radar_weight` there, 1/30 under ``standard``), in bins of metres
 there (the terminal's view: a fall from rest crosses below 5 m/s from 0-7.7 m).
+``--axis downrange`` / ``crossrange``: bin that component of the bias instead (m; navigated
+position = true + bias: a negative downrange bias is a lander further downrange than it
+believes, which learns it when the radar locks), in the bins of the altitude's.
 """
 
 from __future__ import annotations
@@ -27,8 +31,12 @@ GATE_BINS_M = (-30.0, -8.0, -6.0, -4.0, -2.0, 0.0, 2.0, 4.0, 6.0, 8.0, 30.0)
 GATE_ALTITUDE_M = 2000.0
 
 
-def altitude_bias_m(summary: dict) -> np.ndarray:
-    """The up component of the navigation position bias (m) of every case of a campaign."""
+AXES = ("up", "downrange", "crossrange")
+
+
+def altitude_bias_m(summary: dict, axis: int = 0) -> np.ndarray:
+    """Component ``axis`` (0 up, 1 downrange, 2 crossrange) of the navigation position bias (m)
+    of every case of a campaign."""
     from agents.evaluation.campaign import _starts
     from lunar_env.uncertainty import UncertaintyModel
 
@@ -38,18 +46,25 @@ def altitude_bias_m(summary: dict) -> np.ndarray:
     out = []
     for first in range(0, n, chunk):
         _, _, errors, _ = _starts(summary["env"], kwargs, min(chunk, n - first), seed + first)
-        out.append(np.asarray(errors.nav_position_bias_m)[:, 0])
+        out.append(np.asarray(errors.nav_position_bias_m)[:, axis])
     return np.concatenate(out)
 
 
 def main(argv: list[str]) -> None:
     at_gate = "--at-gate" in argv
     argv = [a for a in argv if a != "--at-gate"]
-    if len(argv) != 1:
+    axis = "up"
+    if "--axis" in argv:
+        i = argv.index("--axis")
+        if i + 1 >= len(argv) or argv[i + 1] not in AXES:
+            raise SystemExit(f"--axis takes one of {AXES}")
+        axis = argv[i + 1]
+        del argv[i:i + 2]
+    if len(argv) != 1 or (at_gate and axis != "up"):
         raise SystemExit(__doc__)
     out_dir = Path(argv[0])
     summary = json.loads((out_dir / "campaign.json").read_text())
-    bias = altitude_bias_m(summary)
+    bias = altitude_bias_m(summary, AXES.index(axis))
     bins = BINS_M
     if at_gate:
         from lunar_env.uncertainty import UncertaintyModel, radar_weight
@@ -59,7 +74,7 @@ def main(argv: list[str]) -> None:
         bins = GATE_BINS_M
     rows = list(csv.DictReader((out_dir / "cases.csv").open()))
     edges = list(zip(bins[:-1], bins[1:], strict=True))
-    print("altitude bias (m)      " + "".join(f"{f'[{lo:g}, {hi:g})':>13s}" for lo, hi in edges))
+    print(f"{axis + ' bias (m)':23s}" + "".join(f"{f'[{lo:g}, {hi:g})':>13s}" for lo, hi in edges))
     counts = [int(((bias >= lo) & (bias < hi)).sum()) for lo, hi in edges]
     print("cases                  " + "".join(f"{c:>13d}" for c in counts))
     for law in summary["laws"]:
