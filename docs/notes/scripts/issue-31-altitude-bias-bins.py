@@ -34,7 +34,7 @@ GATE_ALTITUDE_M = 2000.0
 AXES = ("up", "downrange", "crossrange")
 
 
-def altitude_bias_m(summary: dict, axis: int = 0) -> np.ndarray:
+def position_bias_m(summary: dict, axis: int = 0) -> np.ndarray:
     """Component ``axis`` (0 up, 1 downrange, 2 crossrange) of the navigation position bias (m)
     of every case of a campaign."""
     from agents.evaluation.campaign import _starts
@@ -64,7 +64,7 @@ def main(argv: list[str]) -> None:
         raise SystemExit(__doc__)
     out_dir = Path(argv[0])
     summary = json.loads((out_dir / "campaign.json").read_text())
-    bias = altitude_bias_m(summary, AXES.index(axis))
+    bias = position_bias_m(summary, AXES.index(axis))
     bins = BINS_M
     if at_gate:
         from lunar_env.uncertainty import UncertaintyModel, radar_weight
