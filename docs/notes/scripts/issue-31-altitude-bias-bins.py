@@ -19,6 +19,7 @@ believes, which learns it when the radar locks), in the bins of the altitude's.
 
 from __future__ import annotations
 
+import argparse
 import csv
 import json
 import sys
@@ -51,18 +52,14 @@ def position_bias_m(summary: dict, axis: int = 0) -> np.ndarray:
 
 
 def main(argv: list[str]) -> None:
-    at_gate = "--at-gate" in argv
-    argv = [a for a in argv if a != "--at-gate"]
-    axis = "up"
-    if "--axis" in argv:
-        i = argv.index("--axis")
-        if i + 1 >= len(argv) or argv[i + 1] not in AXES:
-            raise SystemExit(f"--axis takes one of {AXES}")
-        axis = argv[i + 1]
-        del argv[i:i + 2]
-    if len(argv) != 1 or (at_gate and axis != "up"):
-        raise SystemExit(__doc__)
-    out_dir = Path(argv[0])
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("campaign_dir", type=Path)
+    p.add_argument("--at-gate", action="store_true")
+    p.add_argument("--axis", choices=AXES, default="up")
+    args = p.parse_args(argv)
+    if args.at_gate and args.axis != "up":
+        p.error("--at-gate bins the altitude bias (--axis up) only")
+    at_gate, axis, out_dir = args.at_gate, args.axis, args.campaign_dir
     summary = json.loads((out_dir / "campaign.json").read_text())
     bias = position_bias_m(summary, AXES.index(axis))
     bins = BINS_M
