@@ -42,6 +42,9 @@ def fly_logged(env_id: str, env_kwargs: dict, uncertainty, spec: str, case: int
 
     scenario = gym.make(env_id, **env_kwargs).unwrapped.scenario
     law = build_law(spec, LawContext(env_id=env_id, env_kwargs=env_kwargs, scenario=scenario))
+    if not hasattr(law, "planned"):
+        raise ValueError(f"law {spec!r} is not a thrust-reserve law "
+                         "(feedback:thrust_reserve=R,...): it has no engines to report")
     frame_args = (scenario.scaling(), np.asarray(scenario.plane_normal()),
                   np.asarray(scenario.target_position_m()),
                   float(scenario.body.spin_rate_rad_s))
