@@ -9,7 +9,7 @@ a stale one.
 ``--law`` (default: the window law of the thirteenth session,
 ``feedback:thrust_reserve=0.05,stop_above_m=12,estimate_thrust=1,terminal_window=1``). Without
 ``--cases`` it re-flies that law's failures that crossed faster than ``--min-speed`` (5.8 m/s:
-above the window's band edges) within the success miss. Case k is reset seed k at the
+above the window's band edges) within the env's success miss. Case k is reset seed k at the
 campaign's error scale 1 (as the campaign flies it); the re-flown touchdown speed is printed
 beside the campaign's, so a changed law or model shows. Per case: the last decision whose
 flown engine's extremal converged ("optimal" or "nearest": time, navigated height above the
@@ -30,43 +30,55 @@ import numpy as np
 DEFAULT_LAW = "feedback:thrust_reserve=0.05,stop_above_m=12,estimate_thrust=1,terminal_window=1"
 
 
-def fly_logged(env_id: str, env_kwargs: dict, uncertainty, spec: str, case: int
-               ) -> tuple[dict, list]:
-    """One flight of case ``case`` (reset seed) with the law ``spec``: (outcome, per-decision
-    log of (t s, engine flown, its status, navigated height m, speed m/s))."""
-    import gymnasium as gym
+class LoggedLaw:
+    """The law ``spec`` built once for ``env_id`` (its CasADi window solvers take seconds to
+    build), flown case by case with a per-decision log."""
 
-    from agents.common.law_specs import LawContext, build_law
-    from agents.common.rollout import fly
-    from agents.experts.explicit.frames import pinpoint_frame
+    def __init__(self, env_id: str, env_kwargs: dict, spec: str) -> None:
+        import gymnasium as gym
 
-    scenario = gym.make(env_id, **env_kwargs).unwrapped.scenario
-    law = build_law(spec, LawContext(env_id=env_id, env_kwargs=env_kwargs, scenario=scenario))
-    if not hasattr(law, "planned"):
-        raise ValueError(f"law {spec!r} is not a thrust-reserve law "
-                         "(feedback:thrust_reserve=R,...): it has no engines to report")
-    frame_args = (scenario.scaling(), np.asarray(scenario.plane_normal()),
-                  np.asarray(scenario.target_position_m()),
-                  float(scenario.body.spin_rate_rad_s))
-    experts = {"reserve": law.planned, "full": law.full, "low": law.low}
-    log = []
-    act = type(law).act
+        from agents.common.law_specs import LawContext, build_law
 
-    def logged(nav):
+        env = gym.make(env_id, **env_kwargs).unwrapped
+        scenario = env.scenario
+        self.success_miss_m = float(env.task.success_miss_m)
+        self.env_id, self.env_kwargs = env_id, env_kwargs
+        self.law = build_law(spec, LawContext(env_id=env_id, env_kwargs=env_kwargs,
+                                              scenario=scenario))
+        if not hasattr(self.law, "planned"):
+            raise ValueError(f"law {spec!r} is not a thrust-reserve law "
+                             "(feedback:thrust_reserve=R,...): it has no engines to report")
+        self.frame_args = (scenario.scaling(), np.asarray(scenario.plane_normal()),
+                           np.asarray(scenario.target_position_m()),
+                           float(scenario.body.spin_rate_rad_s))
+        self.log: list[tuple] = []
+        act = type(self.law).act
+        self.law.act = lambda nav: self._logged(act, nav)
+
+    def _logged(self, act, nav):
+        from agents.experts.explicit.frames import pinpoint_frame
+
+        law = self.law
+        experts = {"reserve": law.planned, "full": law.full, "low": law.low}
         before = dict(law.decisions)
         action = act(law, nav)
         mode = next(k for k, n in law.decisions.items() if n != before[k])
         status = experts[mode].last_status[0] if mode in experts else "-"
-        f = pinpoint_frame(nav.state_nd, *frame_args)
-        log.append((float(np.ravel(nav.t_s)[0]), mode, status, float(f.height_m[0]),
-                    float(np.linalg.norm(f.v[0]))))
+        f = pinpoint_frame(nav.state_nd, *self.frame_args)
+        self.log.append((float(np.ravel(nav.t_s)[0]), mode, status, float(f.height_m[0]),
+                         float(np.linalg.norm(f.v[0]))))
         return action
 
-    law.act = logged
-    out = fly(env_id, law, 1, seed=case,
-              env_kwargs={**env_kwargs, "uncertainty": uncertainty})
-    return {"speed": float(out.touchdown_speed_m_s[0]),
-            "miss": float(out.miss_distance_m[0])}, log
+    def fly(self, uncertainty, case: int) -> tuple[dict, list]:
+        """One flight of case ``case`` (reset seed): (outcome, per-decision log of (t s,
+        engine flown, its status, navigated height m, speed m/s))."""
+        from agents.common.rollout import fly
+
+        self.log = []
+        out = fly(self.env_id, self.law, 1, seed=case,
+                  env_kwargs={**self.env_kwargs, "uncertainty": uncertainty})
+        return {"speed": float(out.touchdown_speed_m_s[0]),
+                "miss": float(out.miss_distance_m[0])}, self.log
 
 
 def main(argv: list[str]) -> None:
@@ -81,22 +93,28 @@ def main(argv: list[str]) -> None:
             if r["law"] == args.law}
     if not rows:
         p.error(f"law {args.law!r} is not in {args.campaign_dir / 'cases.csv'}")
+    from lunar_env.uncertainty import UncertaintyModel
+    from optimizers.indirect.pinpoint_feedback import (
+        STATUS_FALLBACK,
+        STATUS_NEAREST,
+        STATUS_OPTIMAL,
+        STATUS_STALE,
+    )
+
+    flights = LoggedLaw(summary["env"], summary["env_kwargs"], args.law)
     cases = args.cases or [k for k, r in sorted(rows.items())
                            if r["success"] == "False"
                            and float(r["touchdown_speed_m_s"]) > args.min_speed
-                           and float(r["miss_distance_m"]) <= 500.0]
-    from lunar_env.uncertainty import UncertaintyModel
-
+                           and float(r["miss_distance_m"]) <= flights.success_miss_m]
     model = UncertaintyModel(**summary["uncertainty_model"])
     lost = 0
     for case in cases:
-        outcome, log = fly_logged(summary["env"], summary["env_kwargs"], model, args.law,
-                                   case)
-        solved = [k for k, e in enumerate(log) if e[2] in ("optimal", "nearest")]
+        outcome, log = flights.fly(model, case)
+        solved = [k for k, e in enumerate(log) if e[2] in (STATUS_OPTIMAL, STATUS_NEAREST)]
         last = solved[-1] if solved else -1
-        stale = sum(e[2] in ("stale", "fallback") for e in log[last + 1:])
+        stale = sum(e[2] in (STATUS_STALE, STATUS_FALLBACK) for e in log[last + 1:])
         window = any(e[1] == "window" for e in log)
-        lost += stale > 0 and log[last][3] > 100.0
+        lost += stale > 0 and (last < 0 or log[last][3] > 100.0)
         t, _, _, h, v = log[last] if last >= 0 else (np.nan,) * 5
         print(f"case {case:4d}: {outcome['speed']:6.2f} m/s (campaign "
               f"{float(rows[case]['touchdown_speed_m_s']):6.2f}), miss {outcome['miss']:4.0f} m;"
