@@ -195,3 +195,73 @@ def test_pinpoint_ppo_quick_with_curriculum_features_and_shaping(tmp_path):
     assert rep["optimum"]["converged"] == 2 and 270.0 < rep["optimum"]["fuel_mean_kg"] < 295.0
     rows = {r["policy"]: r for r in rep["rows"]}
     assert any(k.startswith("PPO") for k in rows) and "optimum, open loop" in rows
+
+
+def test_same_view_teacher_labels_every_decision_and_flies_until_its_switch():
+    """Issue 31: the law teacher (a guidance law on the navigation solution) is asked at every
+    decision, whoever flies; its actions are the labels of the active landers; the learner
+    flies each lander after that lander's switch time."""
+    from agents.common.law import CallableLaw, Navigation
+    from agents.experts.pinpoint.data import LawRolloutTeacher
+
+    asked = []
+
+    def teacher_fn(nav):
+        asked.append(nav.t_s.copy())
+        return np.tile(np.float32([0.1, -0.2, 0.9]), (nav.n, 1))
+
+    roll = LawRolloutTeacher(CallableLaw(teacher_fn, "teacher"),
+                             lambda obs: np.full((len(obs), 3), -0.5, dtype=np.float32),
+                             switch_s=np.array([0.0, 10.0, 1e9]))
+    roll.reset(None, np.arange(3))
+    nav = Navigation(obs=np.arange(27, dtype=np.float32).reshape(3, 9),
+                     state_nd=np.zeros((3, 7)), t_s=np.array([4.0, 4.0, 4.0]),
+                     active=np.array([True, False, True]))
+    act = roll.act(nav)
+    np.testing.assert_array_equal(act[0], [-0.5, -0.5, -0.5])  # switched at 0 s: the learner
+    np.testing.assert_allclose(act[1:], [[0.1, -0.2, 0.9]] * 2)  # before their switch: the law
+    assert len(asked) == 1
+    # labels: the active landers' navigated observations and the teacher's actions
+    np.testing.assert_array_equal(roll.records["obs"][0], nav.obs[[0, 2]])
+    np.testing.assert_allclose(roll.records["actions"][0], [[0.1, -0.2, 0.9]] * 2)
+
+
+def test_privileged_law_is_refused_as_a_same_view_teacher():
+    from agents.experts.pinpoint.data import DaggerRolloutTeacher, LawRolloutTeacher
+
+    privileged = DaggerRolloutTeacher(None, None, np.zeros(1))
+    with pytest.raises(ValueError, match="same-view teacher"):
+        LawRolloutTeacher(privileged, None, np.zeros(1))
+
+
+def test_bad_teacher_law_is_refused_before_flying(pinpoint_bc):
+    import agents.experts.pinpoint.data as lab_mod
+    from agents.imitation.policy import load_learner
+
+    with pytest.raises(ValueError, match="unknown law 'nope'"):
+        lab_mod.pinpoint_dagger_rollouts(pinpoint_bc / "model.zip", load_learner, ENV_ID, {}, 1,
+                                         11, None, beta=0.0, progress=False,
+                                         teacher_law="nope:x=1")
+
+
+def test_dagger_rollouts_with_a_law_teacher_on_the_throttled_engine(tmp_path):
+    """The law teacher flies (β = 1, switch drawn in [0, 540] s) and labels a throttled,
+    uncertain env: every label has the env's three channels (angles and throttle), and the
+    learner's roll-out is scored. The learner here is a fixed action (no policy file needed:
+    ``load_learner`` is any module-level loader)."""
+    import agents.experts.pinpoint.data as lab_mod
+
+    env_kwargs = {"dt_s": 4.0, "throttle_channel": True, "uncertainty": "standard"}
+    lab, roll = lab_mod.pinpoint_dagger_rollouts(
+        "unused", _fixed_learner, ENV_ID, env_kwargs, 1, 11, None, beta=1.0, progress=False,
+        teacher_law="zem-zev")
+    assert lab["actions"].shape[1] == 3 and len(lab["obs"]) > 10
+    assert set(lab["status"]) == {"law"}
+    assert np.isfinite(lab["actions"]).all() and (np.abs(lab["actions"]) <= 1.0).all()
+    assert 0.0 <= roll["rollout_success_rate"] <= 1.0
+
+
+def _fixed_learner(model, env_id, env_kwargs, obs_features):
+    """A learner that always commands zero angles at full throttle (a module-level loader, so
+    that worker processes can load it like a policy file)."""
+    return lambda obs: np.tile(np.float32([0.0, 0.0, 1.0]), (len(obs), 1))
