@@ -48,6 +48,8 @@ PINPOINT_TOLERANCES = {"radius_m": 500.0, "speed_m_s": 5.0}
 PINPOINT_ACTION_NOISE = 0.02
 OBSERVATION_NAMES = ["altitude/h0", "d_radial/d0", "d_along/d0", "d_cross/d0", "u/(0.1 v0)",
                      "v/v0", "w/(0.1 v0)", "propellant/nominal", "t/time_limit"]
+#: statuses of a decision without a converged solve (a guess, not a label)
+_GUESSES = ("stale", "fallback")
 #: DAgger: the expert flies a mixed episode up to a switch time drawn uniformly in [0, this] (s)
 SWITCH_MAX_S = 540.0
 
@@ -280,7 +282,10 @@ class LawRolloutTeacher(GuidanceLaw):
 
     The teacher flies along with every episode, asked at every decision, so its own memory
     (a thrust estimate, a plan) follows the flight whoever flies it; it flies each episode
-    until its switch time and the learner after it. Its actions are the labels.
+    until its switch time and the learner after it. Its actions are the labels, except where
+    the law reports (a per-row ``last_status``, as the reserve law does) a decision that is a
+    guess, no converged solve ("stale", "fallback"): those are not recorded, as the
+    privileged teacher's are not.
 
     Parameters
     ----------
@@ -309,10 +314,12 @@ class LawRolloutTeacher(GuidanceLaw):
 
     def act(self, nav: Navigation) -> np.ndarray:
         lab = np.asarray(self.teacher.act(nav), dtype=np.float32)
-        m = np.asarray(nav.active, dtype=bool)
+        status = np.asarray(getattr(self.teacher, "last_status", None) or ["law"] * nav.n,
+                            dtype="<U12")
+        m = np.asarray(nav.active, dtype=bool) & ~np.isin(status, _GUESSES)
         self.records["obs"].append(np.asarray(nav.obs)[m])
         self.records["actions"].append(lab[m])
-        self.records["status"].append(np.full(int(m.sum()), "law", dtype="<U12"))
+        self.records["status"].append(status[m])
         pol = self.learner(nav.obs)
         return np.where((nav.t_s < self.switch_s)[:, None], lab, pol).astype(np.float32)
 

@@ -187,6 +187,7 @@ class PinpointReserveExpert(GuidanceLaw):
             PinpointPontryaginExpert(plant_scenario(scenario, scale, 1.0), nominal_guess=guess,
                                      **feedback_kwargs) for scale in (1.0 - r, 1.0 - 2.0 * r))
         self.decisions = {"reserve": 0, "full": 0, "low": 0, "window": 0}
+        self.last_status: list[str] = []
         self.terminal_window = bool(terminal_window)
         self.window: TerminalWindow | None = None
         self.estimator = None
@@ -238,6 +239,7 @@ class PinpointReserveExpert(GuidanceLaw):
             self._last_t_s = np.where(active, t_s, self._last_t_s)
             active = active & ~self.in_window  # landers in their window fly it
         angles, actions, _ = self.planned.labels(nav.state_nd, nav.t_s, active)
+        status = np.array(self.planned.last_status, dtype=object)
         tgo = np.array(self.planned.feedback.last_tgo_s, dtype=float)
         # states are normalised by length, mu and the initial mass: the derated engines'
         # plans read the same normalised states as the nominal one's
@@ -258,6 +260,7 @@ class PinpointReserveExpert(GuidanceLaw):
             if rows.any():
                 ang, act, _ = expert.labels(nav.state_nd, nav.t_s, rows, plan_scale)
                 angles[rows], actions[rows] = ang[rows], act[rows]
+                status[rows] = np.array(expert.last_status, dtype=object)[rows]
                 throttle[rows] = level
                 tgo[rows] = np.asarray(expert.feedback.last_tgo_s)[rows]
         if self.estimator is not None:
@@ -265,6 +268,11 @@ class PinpointReserveExpert(GuidanceLaw):
         windowed = np.zeros(len(active), dtype=bool)
         if self.window is not None:
             windowed = self._fly_windows(nav, everyone, tgo, angles, actions, throttle)
+        status[windowed] = "window"
+        #: per row, the status of the decision flown: the flying extremal's (see
+        #: :data:`PINPOINT_LABEL_STATUSES`; "stale" / "fallback": no converged solve, a guess)
+        #: or "window"
+        self.last_status = [str(x) for x in status]
         self.decisions["full"] += int((long & ~windowed).sum())
         self.decisions["low"] += int((short & ~windowed).sum())
         self.decisions["reserve"] += int((active & ~off & ~windowed).sum())

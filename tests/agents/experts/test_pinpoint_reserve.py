@@ -237,6 +237,7 @@ def test_the_terminal_window_lands_the_nominal_case_without_the_fall():
     assert out.is_success[0]
     throttle = (out.records[0]["action"][:, 2] + 1.0) / 2.0
     assert 2 <= law.decisions["window"] <= 6  # the last seconds, re-planned every decision
+    assert law.last_status == ["window"]  # the status of the decision flown, per lander
     assert sum(law.decisions.values()) == len(throttle)  # each decision counted once
     # after its first step (which may brake hard), the window's throttle is well below the
     # extremal's 95 %: the weave's third of the thrust

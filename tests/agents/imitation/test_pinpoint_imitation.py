@@ -226,6 +226,24 @@ def test_same_view_teacher_labels_every_decision_and_flies_until_its_switch():
     np.testing.assert_allclose(roll.records["actions"][0], [[0.1, -0.2, 0.9]] * 2)
 
 
+def test_same_view_teacher_drops_the_laws_guesses():
+    """A law that reports a per-row status (the reserve law's ``last_status``): its guesses
+    (no converged solve, "stale" / "fallback") are flown but not recorded as labels."""
+    from agents.common.law import CallableLaw, Navigation
+    from agents.experts.pinpoint.data import LawRolloutTeacher
+
+    law = CallableLaw(lambda nav: np.zeros((nav.n, 3), dtype=np.float32), "teacher")
+    law.last_status = ["optimal", "stale", "fallback", "window"]
+    roll = LawRolloutTeacher(law, lambda obs: np.ones((len(obs), 3), dtype=np.float32),
+                             switch_s=np.full(4, 1e9))
+    roll.reset(None, np.arange(4))
+    nav = Navigation(obs=np.arange(36, dtype=np.float32).reshape(4, 9),
+                     state_nd=np.zeros((4, 7)), t_s=np.zeros(4), active=np.ones(4, dtype=bool))
+    assert roll.act(nav).shape == (4, 3)
+    np.testing.assert_array_equal(roll.records["obs"][0], nav.obs[[0, 3]])
+    assert list(roll.records["status"][0]) == ["optimal", "window"]
+
+
 def test_privileged_law_is_refused_as_a_same_view_teacher():
     from agents.experts.pinpoint.data import DaggerRolloutTeacher, LawRolloutTeacher
 
@@ -265,3 +283,41 @@ def _fixed_learner(model, env_id, env_kwargs, obs_features):
     """A learner that always commands zero angles at full throttle (a module-level loader, so
     that worker processes can load it like a policy file)."""
     return lambda obs: np.tile(np.float32([0.0, 0.0, 1.0]), (len(obs), 1))
+
+
+def test_expert_flights_on_a_throttled_engine_keep_full_thrust_without_noise():
+    """Bug fixed in issue 31: on a throttled env the constant-thrust expert's labels lacked the
+    throttle channel (the dataset failed), and the noise, clipped at full thrust, would only
+    ever have weakened the engine. Labels: the throttle at +1; flown: noise on the angles only."""
+    from types import SimpleNamespace
+
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+    from agents.common.law import FlightComputer, Navigation, Truth
+    from agents.experts.pinpoint.data import ExpertFlightTeacher
+
+    env = gym.make(ENV_ID, throttle_channel=True).unwrapped
+    n = 3
+
+    class Expert:
+        scenario = env.scenario
+        feedback = SimpleNamespace(last_tgo_s=np.full(n, 500.0))
+        last_status = np.array(["optimal"] * n)
+
+        def reset(self, computer, case_ids):
+            pass
+
+        def labels(self, states, times, active):
+            return np.zeros((n, 2)), np.full((n, 2), 0.25, dtype=np.float32), active.copy()
+
+    teacher = ExpertFlightTeacher(Expert(), n, 0.3, np.random.default_rng(0))
+    teacher.reset(FlightComputer.of(env, ENV_ID), np.arange(n))
+    nav = Navigation(obs=np.zeros((n, 9), dtype=np.float32), state_nd=np.zeros((n, 7)),
+                     t_s=np.zeros(n), active=np.ones(n, dtype=bool))
+    flown = teacher.act_privileged(nav, Truth(state_nd=np.zeros((n, 7)), t_s=np.zeros(n)))
+    assert flown.shape == (n, 3)
+    np.testing.assert_array_equal(flown[:, 2], 1.0)
+    assert np.all(flown[:, :2] != 0.25)  # the angles carry the noise
+    for i in range(n):
+        np.testing.assert_allclose(teacher.records["actions"][i][0], [0.25, 0.25, 1.0])
