@@ -1,5 +1,6 @@
 """The pinpoint family's imitation data: dataset shards from the Pontryagin feedback expert's
-own (noisy) flights, and DAgger roll-outs labelled in flight by the same expert (what
+own (noisy) flights, and DAgger roll-outs labelled in flight by the same expert, or by a
+guidance law that sees what the student sees (``dagger.teacher_law``) (what
 :meth:`agents.experts.pinpoint.family.PinpointFamily.dataset_recipe` and
 :meth:`~agents.experts.pinpoint.family.PinpointFamily.dagger_iteration` answer).
 
@@ -29,6 +30,7 @@ from agents.experts.family import DaggerRequest, DatasetRecipe
 from agents.experts.flights import collect_samples, make_env
 from agents.experts.pinpoint.expert import PinpointPontryaginExpert
 from lunar_env import get_scenario
+from optimizers.indirect.pinpoint_feedback import STATUS_FALLBACK, STATUS_STALE
 
 __all__ = ["PINPOINT_LABEL_RULE", "PINPOINT_TOLERANCES", "PINPOINT_ACTION_NOISE",
            "OBSERVATION_NAMES", "ExpertFlightTeacher", "pinpoint_expert_flights",
@@ -49,7 +51,7 @@ PINPOINT_ACTION_NOISE = 0.02
 OBSERVATION_NAMES = ["altitude/h0", "d_radial/d0", "d_along/d0", "d_cross/d0", "u/(0.1 v0)",
                      "v/v0", "w/(0.1 v0)", "propellant/nominal", "t/time_limit"]
 #: statuses of a decision without a converged solve (a guess, not a label)
-_GUESSES = ("stale", "fallback")
+_GUESSES = (STATUS_STALE, STATUS_FALLBACK)
 #: DAgger: the expert flies a mixed episode up to a switch time drawn uniformly in [0, this] (s)
 SWITCH_MAX_S = 540.0
 
@@ -340,7 +342,8 @@ def _rollout_teacher(job: dict[str, Any], learner, switch: np.ndarray):
 
 def dagger_chunk(job: dict[str, Any]) -> dict[str, Any]:
     """Fly one chunk of DAgger roll-outs on a pinpoint env and label every visited state with
-    the Pontryagin feedback expert (an executor task; see :func:`pinpoint_dagger_rollouts`)."""
+    the Pontryagin feedback expert or the job's ``teacher_law`` (an executor task; see
+    :func:`pinpoint_dagger_rollouts`)."""
     import torch as th
 
     th.set_num_threads(1)
