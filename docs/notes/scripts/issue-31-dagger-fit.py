@@ -33,6 +33,7 @@ def main() -> None:
     # config.yml holds the run's env arguments: the dataset's with the run's merged over them
     inputs = policy_inputs(env_id, dict(hp.get("env_kwargs") or {}), hp.get("obs_features"))
     ck = args.run_dir / "checkpoints"
+    models: dict[int, PPO] = {}  # each checkpoint loaded once (it serves two iterations)
     k = 1
     while (ck / f"dagger_iter_{k}.zip").exists():
         with np.load(args.run_dir / "labels" / f"iter_{k:03d}.npz") as z:
@@ -40,7 +41,9 @@ def main() -> None:
         x = inputs(obs)
         print(f"labels of iteration {k} ({len(obs)}):")
         for who in (k - 1, k):
-            model = PPO.load(ck / f"dagger_iter_{who}.zip", device="cpu")
+            if who not in models:
+                models[who] = PPO.load(ck / f"dagger_iter_{who}.zip", device="cpu")
+            model = models[who]
             err = model.predict(x, deterministic=True)[0] - act
             cells = []
             for lo, hi in BANDS:
