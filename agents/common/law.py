@@ -187,6 +187,14 @@ class GuidanceLaw(ABC):
     def act(self, nav: Navigation) -> np.ndarray:
         """Actions (N, n_act) float32 for the landers of ``nav``."""
 
+    def flown(self, nav: Navigation, actions: np.ndarray) -> None:
+        """Told, after :meth:`act`, the actions (N, n_act) actually flown at this decision,
+        where another policy flew in place of this law (a DAgger roll-out: the student flies,
+        the law labels). Default: nothing. A law whose memory follows the controls it
+        commanded (a thrust estimate from the velocity changes they gave) overrides it, so
+        that its memory follows the flight whoever flies it."""
+        del nav, actions  # a law without memory of its commands has nothing to update
+
 
 class PrivilegedLaw(GuidanceLaw):
     """A teacher allowed the simulator's truth: :meth:`act_privileged` replaces :meth:`act`."""

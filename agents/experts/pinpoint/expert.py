@@ -13,7 +13,7 @@ from agents.experts.explicit.frames import pinpoint_frame
 from agents.experts.family import plant_scenario
 from agents.experts.pinpoint.engine_estimate import ThrustScaleEstimator
 from agents.experts.pinpoint.terminal import TerminalWindow
-from lunar_env.envs.pinpoint_landing import action_from_angles
+from lunar_env.envs.pinpoint_landing import action_from_angles, angles_from_action
 from optimizers.indirect.pinpoint_feedback import (
     PinpointFeedback,
 )
@@ -279,8 +279,27 @@ class PinpointReserveExpert(GuidanceLaw):
         self.decisions["window"] += int(windowed.sum())
         if self.estimator is not None:
             self.estimator.record(nav.state_nd, np.c_[angles, throttle], nav.t_s, everyone)
-        return np.concatenate([actions, (2.0 * throttle - 1.0)[:, None]],
-                              axis=1).astype(np.float32)
+        self._commanded = np.concatenate([actions, (2.0 * throttle - 1.0)[:, None]],
+                                         axis=1).astype(np.float32)
+        return self._commanded.copy()
+
+    def flown(self, nav: Navigation, actions: np.ndarray) -> None:
+        """Another policy flew ``actions`` (N, 3) at this decision: the thrust estimate records
+        those controls, not this law's (else it credits the engine with the difference), and
+        a lander in its window flown off its plan takes the next re-plan from where it is
+        (the plan's promised margin no longer holds)."""
+        actions = np.asarray(actions, dtype=np.float64)
+        active = np.asarray(nav.active, dtype=bool)
+        if self.estimator is not None:
+            sc = self.computer.scenario
+            alpha, beta = angles_from_action(actions[:, :2], sc.alpha_bounds_rad,
+                                             sc.beta_bounds_rad)
+            throttle = np.clip(0.5 * (actions[:, 2] + 1.0), 0.0, 1.0)
+            self.estimator.record(nav.state_nd, np.c_[alpha, beta, throttle], nav.t_s, active)
+        if self.window is not None:
+            off = active & self.in_window & np.any(
+                np.abs(actions - self._commanded) > 1e-6, axis=1)
+            self._margin_m[off] = -np.inf
 
     def _fly_windows(self, nav: Navigation, active: np.ndarray, tgo_s: np.ndarray,
                      angles: np.ndarray, actions: np.ndarray, throttle: np.ndarray

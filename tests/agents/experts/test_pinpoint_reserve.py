@@ -257,3 +257,32 @@ def test_the_terminal_window_lands_altitude_errors_that_defeat_the_fall():
     fall = fly(ENV_ID, PinpointReserveExpert(_scenario(), 0.05, stop_above_m=4.0), 2, seed=0,
                env_kwargs=env_kwargs, reset_options=pinned)
     assert not fall.is_success.any(), (fall.touchdown_speed_m_s, fall.miss_distance_m)
+
+
+class _Enough(Exception):
+    """Ends a test flight after its decisions of interest."""
+
+
+def test_the_estimate_follows_the_controls_flown_when_another_policy_flies():
+    # issue 31, seventeenth session: as a DAgger teacher the law labels while the student
+    # flies; fed its own controls, its thrust estimate credited the engine with the
+    # difference (8 % RMS off over 12 student flights, 0.4 % fed the flown controls)
+    from agents.experts.pinpoint.data import LawRolloutTeacher
+
+    law = PinpointReserveExpert(_scenario(), 0.05, stop_above_m=12.0, estimate_thrust=True,
+                                terminal_window=True)
+    student = np.float32([0.0, 0.0, 2.0 * 0.7 - 1.0])  # 70 % throttle, the law asks ~95 %
+
+    class Rollout(LawRolloutTeacher):
+        def act(self, nav):
+            if nav.t_s[0] >= 30.0:
+                raise _Enough
+            return super().act(nav)
+
+    roll = Rollout(law, lambda obs: np.tile(student, (len(obs), 1)), switch_s=np.zeros(1))
+    with pytest.raises(_Enough):
+        fly(ENV_ID, roll, 1, seed=0, env_kwargs=dict(THROTTLED, uncertainty="standard"),
+            reset_options={"errors": {"thrust_scale": [0.96], "mass_error_kg": [0.0]}})
+    est = law.estimator
+    assert est._count[0] >= 10
+    assert est.thrust_scale[0] == pytest.approx(0.96, abs=0.01)
