@@ -21,7 +21,9 @@ well. Evaluation tables mark its rows (:func:`law_label`).
 
 One call acts for N landers: ``act(nav)`` returns actions of shape (N, n_act), float32 in the
 env's action space. Actions of landers that are no longer flying (``nav.active`` false) are
-ignored by the loop, so a costly law may skip them.
+ignored by the loop, so a costly law may skip them. A law that only labels while another
+policy flies (a DAgger teacher) is told the actions flown, ``flown(nav, actions)``, after each
+``act``; a law whose memory follows its own commands (a thrust estimate) overrides it.
 
 Writing a new law (flown by ``agents.evaluation.compare.compare`` like any other)::
 

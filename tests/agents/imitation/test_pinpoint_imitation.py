@@ -226,6 +226,31 @@ def test_same_view_teacher_labels_every_decision_and_flies_until_its_switch():
     np.testing.assert_allclose(roll.records["actions"][0], [[0.1, -0.2, 0.9]] * 2)
 
 
+def test_same_view_teacher_is_told_the_actions_flown():
+    """The law's memory must follow the flight (issue 31, seventeenth session: the window
+    law's thrust estimate, fed its own controls while the student flew, was 8 % off): the
+    roll-out tells it the actions flown, the learner's after its switch, its own before."""
+    from agents.common.law import CallableLaw, Navigation
+    from agents.experts.pinpoint.data import LawRolloutTeacher
+
+    told = []
+
+    class Teacher(CallableLaw):
+        def flown(self, nav, actions):
+            told.append(np.array(actions))
+
+    law = Teacher(lambda nav: np.full((nav.n, 3), 0.9, dtype=np.float32), "teacher")
+    roll = LawRolloutTeacher(law, lambda obs: np.full((len(obs), 3), -0.5, dtype=np.float32),
+                             switch_s=np.array([0.0, 1e9]))
+    roll.reset(None, np.arange(2))
+    nav = Navigation(obs=np.zeros((2, 9), dtype=np.float32), state_nd=np.zeros((2, 7)),
+                     t_s=np.ones(2), active=np.ones(2, dtype=bool))
+    flown = roll.act(nav)
+    assert len(told) == 1
+    np.testing.assert_array_equal(told[0], flown)
+    np.testing.assert_allclose(told[0], [[-0.5] * 3, [0.9] * 3])
+
+
 def test_same_view_teacher_drops_the_laws_guesses():
     """A law that reports a per-row status (the reserve law's ``last_status``): its guesses
     (no converged solve, "stale" / "fallback") are flown but not recorded as labels."""
