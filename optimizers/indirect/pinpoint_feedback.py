@@ -315,8 +315,13 @@ def solve_extremal(consts: FeedbackConstants, state_nd: np.ndarray, guess: np.nd
     if not (np.all(np.isfinite(g)) and nv > 0 and g[6] > 0):
         raise ValueError(f"guess {g!r} must be finite with λ_v != 0 and tgo > 0")
     g[:6] /= nv
-    z, nrm, it = _newton(x0, g, consts.c, step_s / consts.time_s, int(min_steps), float(tol),
-                         int(max_iter), bool(free_along), float(sigma_target))
+    try:
+        z, nrm, it = _newton(x0, g, consts.c, step_s / consts.time_s, int(min_steps),
+                             float(tol), int(max_iter), bool(free_along), float(sigma_target))
+    except ZeroDivisionError:
+        # a Newton iterate whose integration hits a zero divisor (compiled code raises where
+        # NumPy would give inf): no extremal from this guess, as a singular Jacobian
+        z, nrm, it = g, math.inf, int(max_iter)
     ok = bool(np.isfinite(nrm) and nrm <= 100 * tol and z[6] > 0)
     return ExtremalSolution(z, ok, float(nrm), int(it), float(z[6] * consts.time_s),
                             float(z[7] * consts.c[_RG] * consts.length_m))

@@ -189,3 +189,25 @@ def test_a_row_with_a_thrust_scale_flies_the_extremal_of_that_engine():
     for bad in (0.0, -1.0, np.nan):
         with pytest.raises(ValueError, match="thrust_scale"):
             fb(x0[None], [4.0], 2.0, thrust_scale=bad)
+
+
+def test_a_guess_whose_newton_iterate_divides_by_zero_is_not_converged():
+    # issue 31, seventeenth session: a DAgger roll-out's state and warm start (a student's
+    # flight, the window law's thrust estimate) whose Newton iterate overflows its
+    # integration, where the compiled kernel raised ZeroDivisionError and ended the run
+    from optimizers.indirect.pinpoint_feedback import FeedbackConstants, solve_extremal
+
+    c = np.array([1.5191126357915623, 1.7504512194307813, 0.0027543020090812875,
+                  0.08682408883346514, -0.49240387650610395, 0.8660254037844388,
+                  -0.8726646259971648, 0.6981317007977318, 2.2689280275926285,
+                  3.839724354387525, 0.8951496342466803, 0.417415129643873, 0.1564344650402309,
+                  -0.4385339088218182, 0.7616623890575763, 0.47703083328917273,
+                  1.0011576524741082])
+    k = FeedbackConstants(c=c, time_s=1034.7905508063598, length_m=1738000.0,
+                          velocity_m_s=1679.56694100624, mass_kg=600.0, dry_mass_nd=0.5)
+    x0 = [0.9029411024732739, 0.40757992167332685, 0.1487157367476927, -0.14722938019125065,
+          0.22624590675087994, 0.1366194629131431, 0.6490404436097998]
+    guess = [-6.212224434707565, 4.092887672956114, 1.8903990215221564, -0.8082251676057562,
+             0.5274987843259835, 0.26175773337813163, 0.13570308187103153]
+    sol = solve_extremal(k, np.array(x0), np.array(guess))
+    assert not sol.converged and sol.residual == float("inf")
