@@ -1,6 +1,7 @@
 """Issue 31: two laws paired on a campaign's cases, and each law's landings by engine error.
 
-``python docs/notes/scripts/issue-31-paired.py CASES_CSV [--pairs 'A|B' ...] [--laws LAW ...]``
+``python docs/notes/scripts/issue-31-paired.py CASES_CSV [--pairs 'A|B' ...] [--laws LAW ...]
+[--scale S]``
 
 Reads a campaign's ``cases.csv`` (``python -m agents.campaign ... --out DIR`` writes
 ``DIR/cases.csv``; law names as its ``law`` column, e.g. ``ppo:thr4_ctrl_126M_s1``) and prints
@@ -9,18 +10,24 @@ Reads a campaign's ``cases.csv`` (``python -m agents.campaign ... --out DIR`` wr
   nominal: `standard`'s σ is 2 %), within 1σ, and more than 1σ strong;
 - per pair ``A|B``, the discordant cases (only A lands / only B lands) and McNemar's exact
   test on them (two-sided binomial test at 1/2), the paired comparison of the notes.
+
+``--scale S`` pairs the flights of the robustness curve's scale S instead (every error × S,
+on the curve's cases), read from the campaign's store beside ``CASES_CSV`` (``DIR/store``);
+the engine bins are then left out (``cases.csv`` holds the × 1 draws).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 from collections import defaultdict
 from pathlib import Path
 
 from scipy.stats import binomtest
 
 from lunar_env.uncertainty import get_uncertainty
+from optimizers.common.executor import ResultStore, TaskKey
 
 THRUST_SIGMA = get_uncertainty("standard").thrust_scale
 
@@ -31,6 +38,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--pairs", nargs="*", default=[],
                    help="LAW_A|LAW_B (law names hold ':', so '|' separates them)")
     p.add_argument("--laws", nargs="*", default=None, help="laws to bin (default: all)")
+    p.add_argument("--scale", type=float, default=1.0,
+                   help="pair the curve's flights at this error scale (from DIR/store)")
     args = p.parse_args(argv)
     success: dict[str, dict[int, bool]] = defaultdict(dict)
     thrust: dict[int, float] = {}
@@ -39,11 +48,14 @@ def main(argv: list[str] | None = None) -> int:
             case = int(row["case"])
             success[row["law"]][case] = row["success"] == "True"
             thrust[case] = float(row["thrust_scale"])
+    if args.scale != 1.0:
+        success = _curve_success(args.cases_csv.parent, sorted(success), args.scale)
     bins = {"weak > 1σ": lambda t: t < 1.0 - THRUST_SIGMA,
             "within 1σ": lambda t: abs(t - 1.0) <= THRUST_SIGMA,
             "strong > 1σ": lambda t: t > 1.0 + THRUST_SIGMA}
-    print(f"{'law':32s} " + " ".join(f"{b:>14s}" for b in bins))
-    for law in args.laws or sorted(success):
+    if args.scale == 1.0:
+        print(f"{'law':32s} " + " ".join(f"{b:>14s}" for b in bins))
+    for law in (args.laws or sorted(success)) if args.scale == 1.0 else ():
         if law not in success:
             raise SystemExit(f"law {law!r} is not in {args.cases_csv}; it has: "
                              f"{', '.join(sorted(success))}")
@@ -62,6 +74,25 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{a} vs {b}: only the first lands {only_a}, only the second {only_b}, "
               f"McNemar p = {pvalue:.2g}")
     return 0
+
+
+def _curve_success(out_dir: Path, laws: list[str], scale: float) -> dict[str, dict[int, bool]]:
+    """Per law, case -> landed, for the curve's flights at ``scale`` in ``out_dir/store``."""
+    seed = json.loads((out_dir / "campaign.json").read_text())["seed"]
+    store = ResultStore(out_dir / "store")
+    success: dict[str, dict[int, bool]] = {}
+    for law in laws:
+        k, rows = 0, {}
+        while (key := TaskKey(f"{law}@x{scale:g}", seed, k)) in store:
+            part = store.get(key)
+            cases, landed = part["case"], part["success"]
+            rows.update({int(c): bool(s) for c, s in zip(cases, landed, strict=True)})
+            k += 1
+        if rows:
+            success[law] = rows
+    if not success:
+        raise SystemExit(f"no flights at scale {scale:g} in {out_dir / 'store'}")
+    return success
 
 
 if __name__ == "__main__":
