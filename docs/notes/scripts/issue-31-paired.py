@@ -48,32 +48,41 @@ def main(argv: list[str] | None = None) -> int:
             case = int(row["case"])
             success[row["law"]][case] = row["success"] == "True"
             thrust[case] = float(row["thrust_scale"])
-    if args.scale != 1.0:
-        success = _curve_success(args.cases_csv.parent, sorted(success), args.scale)
-    bins = {"weak > 1σ": lambda t: t < 1.0 - THRUST_SIGMA,
-            "within 1σ": lambda t: abs(t - 1.0) <= THRUST_SIGMA,
-            "strong > 1σ": lambda t: t > 1.0 + THRUST_SIGMA}
+    source = str(args.cases_csv)
     if args.scale == 1.0:
-        print(f"{'law':32s} " + " ".join(f"{b:>14s}" for b in bins))
-    for law in (args.laws or sorted(success)) if args.scale == 1.0 else ():
-        if law not in success:
-            raise SystemExit(f"law {law!r} is not in {args.cases_csv}; it has: "
-                             f"{', '.join(sorted(success))}")
-        cells = []
-        for test in bins.values():
-            hits = [s for c, s in success[law].items() if test(thrust[c])]
-            cells.append(f"{100.0 * sum(hits) / len(hits):7.1f} % ({len(hits)})")
-        print(f"{law:32s} " + " ".join(f"{c:>14s}" for c in cells))
+        _print_engine_bins(success, thrust, args.laws or sorted(success), source)
+    else:
+        success = _curve_success(args.cases_csv.parent, sorted(success), args.scale)
+        source = f"{args.cases_csv.parent / 'store'} at scale {args.scale:g}"
     for pair in args.pairs:
         a, sep, b = pair.partition("|")
         if not sep or a not in success or b not in success:
-            raise SystemExit(f"pair {pair!r}: give two laws of {args.cases_csv} as 'A|B'")
+            raise SystemExit(f"pair {pair!r}: give two laws of {source} as 'A|B'; it has: "
+                             f"{', '.join(sorted(success))}")
         only_a = sum(success[a][c] and not success[b][c] for c in success[a])
         only_b = sum(success[b][c] and not success[a][c] for c in success[a])
         pvalue = binomtest(only_a, only_a + only_b).pvalue if only_a + only_b else 1.0
         print(f"{a} vs {b}: only the first lands {only_a}, only the second {only_b}, "
               f"McNemar p = {pvalue:.2g}")
     return 0
+
+
+def _print_engine_bins(success: dict[str, dict[int, bool]], thrust: dict[int, float],
+                       laws: list[str], source: str) -> None:
+    """Per law, the success rate by the drawn thrust error: > 1σ weak, within, > 1σ strong."""
+    bins = {"weak > 1σ": lambda t: t < 1.0 - THRUST_SIGMA,
+            "within 1σ": lambda t: abs(t - 1.0) <= THRUST_SIGMA,
+            "strong > 1σ": lambda t: t > 1.0 + THRUST_SIGMA}
+    print(f"{'law':32s} " + " ".join(f"{b:>14s}" for b in bins))
+    for law in laws:
+        if law not in success:
+            raise SystemExit(f"law {law!r} is not in {source}; it has: "
+                             f"{', '.join(sorted(success))}")
+        cells = []
+        for test in bins.values():
+            hits = [s for c, s in success[law].items() if test(thrust[c])]
+            cells.append(f"{100.0 * sum(hits) / len(hits):7.1f} % ({len(hits)})")
+        print(f"{law:32s} " + " ".join(f"{c:>14s}" for c in cells))
 
 
 def _curve_success(out_dir: Path, laws: list[str], scale: float) -> dict[str, dict[int, bool]]:
