@@ -110,6 +110,12 @@ def train_candidate(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> i
     checkpoint when it has one), its console lines prefixed ``[seed <s>]``; returns its final
     ``num_timesteps``.
 
+    In a worker process, SIGTERM raises KeyboardInterrupt for the whole task (``train`` turns
+    it into a checkpoint while it learns), and once the task has returned the worker ignores
+    SIGTERM and SIGINT: the race stops its workers by SIGTERM, and a candidate that finished
+    before the others would otherwise die of it, idle, and break the pool under the candidates
+    still checkpointing (seen as a lost checkpoint message and as a hung race).
+
     Raises
     ------
     KeyboardInterrupt
@@ -121,6 +127,10 @@ def train_candidate(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> i
     from agents.rl.training import train
 
     cand = Path(cand_dir)
+    in_worker = multiprocessing.parent_process() is not None
+    if in_worker:
+        signal.signal(signal.SIGTERM, _interrupt)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     streams = sys.stdout, sys.stderr
     sys.stdout = _Prefixed(streams[0], f"[seed {run['seed']}] ")
     sys.stderr = _Prefixed(streams[1], f"[seed {run['seed']}] ")
@@ -139,6 +149,13 @@ def train_candidate(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> i
         return int(model.num_timesteps)
     finally:
         sys.stdout, sys.stderr = streams
+        if in_worker:  # idle until the pool's shutdown ends it
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 class _Prefixed:

@@ -252,7 +252,10 @@ def test_seed_race_stopped_by_sigterm_checkpoints_every_candidate_and_resumes(tm
     test_quick_race_end_to_end_and_its_resume`` (``slow``) adds an uninterrupted race and a
     resume after one candidate finished."""
     run_dir = tmp_path / "race"
-    n = 8192
+    # long enough that neither candidate can finish before the other's first checkpoint: at
+    # 8192 steps (~2 s of training here) a candidate started ~2 s late on a loaded CI machine
+    # found the other trained out and past its SIGTERM handler (a flaky CI failure, 2026-11-28)
+    n = 32768
     proc = python(_TRAIN_CLI, "--quick", "--env", "LunarPinpointLanding-v2", "--seed", "3",
                   "--run-dir", str(run_dir), "--no-progress", "--no-eval", "--no-tensorboard",
                   "--hyperparams", "seed_race={candidates: 2}", f"n_timesteps={n}")
@@ -266,7 +269,8 @@ def test_seed_race_stopped_by_sigterm_checkpoints_every_candidate_and_resumes(tm
         proc.kill()
         proc.wait()
     assert proc.returncode == 130, out[-3000:]
-    assert "[seed 3] Interrupted at step" in out and "[seed 4] Interrupted at step" in out
+    assert "[seed 3] Interrupted at step" in out and "[seed 4] Interrupted at step" in out, \
+        out[-3000:]
     assert "continue with: python train.py --resume" in out
 
     def alive(pid):
@@ -297,6 +301,70 @@ def test_seed_race_stopped_by_sigterm_checkpoints_every_candidate_and_resumes(tm
     for s in (3, 4):  # a candidate is an ordinary run
         cand_hp = yaml.safe_load((run_dir / "race" / f"seed_{s}" / "config.yml").read_text())
         assert "seed_race" not in cand_hp and cand_hp["select_checkpoint"]
+    assert _steps_of(run_dir) == n
+
+
+def _pool_workers(pid: int) -> list[int]:
+    """The process-pool workers among ``pid``'s children (multiprocessing's spawn)."""
+    out = []
+    for k in children(pid):
+        try:
+            if b"spawn_main" in Path(f"/proc/{k}/cmdline").read_bytes():
+                out.append(k)
+        except OSError:
+            continue
+    return out
+
+
+@pytest.mark.slow
+def test_seed_race_stopped_after_one_candidate_finished_checkpoints_the_other(tmp_path, capfd):
+    """Quick twin: ``tests/agents/rl/test_seed_race.py::
+    test_a_worker_whose_candidate_returned_survives_the_race_s_sigterm``.
+
+    A candidate that finished before the race's SIGTERM died of it, idle in its pool worker
+    (SIGTERM's default action), and broke the pool under the other candidate: the race hung
+    (reproduced) or lost the other's checkpoint message (a CI run). One worker is held
+    (SIGSTOP) until the other's candidate has finished; then SIGTERM: the race ends with 130,
+    the held candidate checkpoints, and ``--resume`` trains it on and decides the race."""
+    run_dir = tmp_path / "race"
+    n = 8192
+    proc = python(_TRAIN_CLI, "--quick", "--env", "LunarPinpointLanding-v2", "--seed", "3",
+                  "--run-dir", str(run_dir), "--no-progress", "--no-eval", "--no-tensorboard",
+                  "--hyperparams", "seed_race={candidates: 2}", f"n_timesteps={n}")
+    cands = {s: run_dir / "race" / f"seed_{s}" for s in (3, 4)}
+    workers: list[int] = []
+    try:
+        wait_for(lambda: all(any(c.glob("checkpoints/rl_model_*_steps.zip"))
+                             for c in cands.values()), 300, proc)
+        workers = _pool_workers(proc.pid)
+        assert len(workers) == 2, workers
+        for w in workers:
+            os.kill(w, signal.SIGSTOP)
+        os.kill(workers[0], signal.SIGCONT)
+        wait_for(lambda: any((c / "selection.yml").exists() for c in cands.values()), 300, proc)
+        os.kill(workers[1], signal.SIGCONT)
+        proc.send_signal(signal.SIGTERM)
+        out = proc.communicate(timeout=120)[0].decode()
+    finally:
+        for w in workers:
+            try:
+                os.kill(w, signal.SIGCONT)
+            except ProcessLookupError:
+                pass
+        proc.kill()
+        proc.wait()
+    assert proc.returncode == 130, out[-3000:]
+    (held,) = [s for s, c in cands.items() if not (c / "selection.yml").exists()]
+    assert f"[seed {held}] Interrupted at step" in out, out[-3000:]
+    stopped = max(int(f.stem.split("_")[2])
+                  for f in cands[held].glob("checkpoints/rl_model_*_steps.zip"))
+    assert 0 < stopped < n
+    capfd.readouterr()
+    assert _resume(run_dir) == 0
+    out = capfd.readouterr().out
+    assert f"[seed {held}] Resuming {cands[held]} from step {stopped} of {n}" in out, out
+    race = yaml.safe_load((run_dir / "race.yml").read_text())
+    assert race["seeds"] == [3, 4] and race["decide_at_steps"] == n
     assert _steps_of(run_dir) == n
 
 

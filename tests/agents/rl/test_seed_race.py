@@ -190,3 +190,25 @@ def test_candidates_run_as_keyed_executor_tasks(tmp_path, monkeypatch):
                     "fn": [rc.train_candidate] * 2, "workers": 2}
     args = yaml.safe_load((dirs[2] / "args.yml").read_text())
     assert args["seed"] == 9 and "race_seed" not in args and args["no_eval"]
+
+
+def test_a_worker_whose_candidate_returned_survives_the_race_s_sigterm(tmp_path):
+    """The race stops its workers by SIGTERM. A candidate's worker whose task has returned
+    (here a candidate that fails at once) ignores it and stays in the pool until the pool's
+    shutdown; with SIGTERM's default action it died idle and broke the pool under the
+    candidates still checkpointing. The end-to-end case is the ``slow`` test
+    ``tests/agents/test_run_dirs_and_resume.py::
+    test_seed_race_stopped_after_one_candidate_finished_checkpoints_the_other``."""
+    import multiprocessing as mp
+    import os
+    import signal
+    import time
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as pool:
+        with pytest.raises(RuntimeError, match="candidate seed 5 failed"):
+            pool.submit(rc.train_candidate, {}, {"seed": 5}, str(tmp_path / "c5")).result(120)
+        worker = pool.submit(os.getpid).result(60)
+        os.kill(worker, signal.SIGTERM)
+        time.sleep(0.5)
+        assert pool.submit(os.getpid).result(60) == worker  # the same worker, alive
