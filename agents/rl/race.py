@@ -124,12 +124,12 @@ def train_candidate(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> i
         Training failed; the message names the seed and the candidate's run directory.
     """
     from agents.common.runs import resumable_checkpoint
-    from agents.rl.training import train
+    from agents.rl.training import interrupt_on_sigterm, train
 
     cand = Path(cand_dir)
     in_worker = multiprocessing.parent_process() is not None
     if in_worker:
-        signal.signal(signal.SIGTERM, _interrupt)
+        signal.signal(signal.SIGTERM, interrupt_on_sigterm)
         signal.signal(signal.SIGINT, signal.default_int_handler)
     streams = sys.stdout, sys.stderr
     sys.stdout = _Prefixed(streams[0], f"[seed {run['seed']}] ")
@@ -152,10 +152,6 @@ def train_candidate(hp: dict[str, Any], run: dict[str, Any], cand_dir: str) -> i
         if in_worker:  # idle until the pool's shutdown ends it
             signal.signal(signal.SIGTERM, signal.SIG_IGN)
             signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
 
 
 class _Prefixed:

@@ -28,7 +28,7 @@ from agents.common.runs import (
 from agents.hyperparams import resolve_algo_kwargs
 from lunar_env.validation import require_bool
 
-__all__ = ["train", "make_training_env", "DEFAULT_ENV_ID"]
+__all__ = ["train", "interrupt_on_sigterm", "make_training_env", "DEFAULT_ENV_ID"]
 
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
 
@@ -229,6 +229,12 @@ def widen_action_head(weights: dict, target: dict, added: Any, source: str) -> d
     return out
 
 
+def interrupt_on_sigterm(signum, frame) -> None:
+    """SIGTERM handler that takes the Ctrl-C path (a checkpoint, then exit): raises
+    KeyboardInterrupt."""
+    raise KeyboardInterrupt
+
+
 def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool = False,
           callbacks: list | None = None, on_resumed=None):
     """Train (or continue) one run; returns ``(model, run_dir)``.
@@ -381,10 +387,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     warmup_steps = int(hp.get("critic_warmup_steps") or 0)
     extra = [CriticWarmupCallback(warmup_steps)] if warmup_steps else []
 
-    def _on_sigterm(signum, frame):  # turn SIGTERM into the Ctrl-C path: checkpoint, then exit
-        raise KeyboardInterrupt
-
-    old_handler = signal.signal(signal.SIGTERM, _on_sigterm)
+    old_handler = signal.signal(signal.SIGTERM, interrupt_on_sigterm)
     try:
         if remaining > 0:
             model.learn(total_timesteps=remaining,
