@@ -7,8 +7,9 @@ A refactor of the env step, or a new env option that must leave the nominal worl
     python benchmarks/record_episodes.py record after.npz       # on the new one
     python benchmarks/record_episodes.py compare before.npz after.npz
 
-Each id is flown in four settings (defaults, a throttle channel, 2 s decisions with 3
-substeps, a 40 s time limit so truncations happen): three seeded single-env episodes with
+Each id is flown in six settings (defaults, a throttle channel, 2 s decisions with 3
+substeps, a 40 s time limit so truncations happen, and the ``standard`` uncertainty set with
+and without the throttle channel): three seeded single-env episodes with
 seeded random actions (observations, rewards, flags, every info key with its type and value),
 and a 5-lander native vector env over 900 steps through autoresets (every info key and mask)
 plus 400 steps of ``step_landers`` / ``reset_landers`` / ``observations``. ``compare`` exits 1
@@ -26,17 +27,15 @@ import numpy as np
 import lunar_env  # noqa: F401  (registers the ids)
 
 SETTINGS = (({}, ""), ({"throttle_channel": True}, "+thr"),
-            ({"dt_s": 2.0, "substeps": 3}, "+dt2"), ({"time_limit_s": 40.0}, "+tl"))
+            ({"dt_s": 2.0, "substeps": 3}, "+dt2"), ({"time_limit_s": 40.0}, "+tl"),
+            ({"uncertainty": "standard"}, "+std"),
+            ({"uncertainty": "standard", "throttle_channel": True}, "+std+thr"))
 
 
 def ids() -> list[str]:
     """Every registered lunar_env id."""
     return sorted(k for k, s in gym.registry.items()
                   if k.startswith("Lunar") and str(s.entry_point).startswith("lunar_env"))
-
-def flat_info(info, prefix, store, k):
-    for key in sorted(info):
-        store.setdefault(f"{prefix}/info/{key}", []).append((k, np.asarray(info[key])))
 
 def run_single(env_id, kw, tag, store, n_steps=1300, seeds=(0, 1, 2)):
     env = gym.make(env_id, **kw)
@@ -67,8 +66,11 @@ def run_single(env_id, kw, tag, store, n_steps=1300, seeds=(0, 1, 2)):
     store[key + "/trunc"] = np.array(trunc)
     store[key + "/infokeys"] = np.array([";".join(f"{a}:{type(b).__name__}" for a, b in it)
                                          for _, _, it in infos])
-    store[key + "/infovals"] = np.array([[float(b) for _, b in it] + [np.nan] * (8 - len(it))
-                                         for _, _, it in infos])
+    rows = [np.concatenate([np.ravel(np.asarray(b, dtype=np.float64)) for _, b in it])
+            for _, _, it in infos]
+    width = max(len(r) for r in rows)
+    store[key + "/infovals"] = np.array([np.pad(r, (0, width - len(r)), constant_values=np.nan)
+                                         for r in rows])
 
 def run_vec(env_id, kw, tag, store, n=5, n_steps=900):
     venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kw)
