@@ -9,30 +9,58 @@
     python -m agents.evaluate --env LunarPinpointLanding-v2 --env-kwargs \
         '{"throttle_channel": true}' --laws apollo zem-zev --n-states 200
 
-``--laws`` takes law specs ``NAME[:ARG][:KEY=VALUE,...]`` (:mod:`agents.common.law_specs`;
-the explicit laws' options: :mod:`agents.experts.explicit.specs`), flown beside the models.
+``--laws`` takes law specs ``NAME[:ARG][:KEY=VALUE,...]`` (:mod:`guidance.registry`;
+the explicit laws' options: :mod:`guidance.laws.apollo_specs`), flown beside the models.
 
-What is flown and measured: :mod:`agents.evaluation.compare`.
+What is flown and measured: :mod:`guidance.evaluation.compare`.
 """
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
-from agents.common.law import GuidanceLaw
-from agents.common.law_specs import LawContext, build_law, law_names, parse_law_spec
-from agents.common.sb3_law import SB3Law
-from agents.evaluation.compare import (
+from agents.laws import SB3Law
+from guidance.evaluation.compare import (
     DEFAULT_ENV_ID,
     DEFAULT_N_STATES,
     DEFAULT_SEED,
     compare,
 )
-from agents.evaluation.report import publish_report
+from guidance.evaluation.report import markdown_table, publish_report, write_report
+from guidance.law import GuidanceLaw
+from guidance.registry import LawContext, build_law, law_names, parse_law_spec
 from optimizers.common.cli import check_env, user_input_errors
 
-__all__ = ["main"]
+__all__ = ["main", "evaluate_run"]
+
+
+def evaluate_run(run_dir: str | Path, n_states: int = DEFAULT_N_STATES, seed: int = DEFAULT_SEED,
+                 n_expert_states: int | None = None, open_loop: bool = True,
+                 out_dir: str | Path | None = None) -> dict[str, Any]:
+    """Evaluate a training run (its final model) against the baselines; print and save the table.
+
+    Uses the run's env id and ``env_kwargs`` (from ``args.yml`` / ``config.yml``); writes into
+    ``<run_dir>/evaluation`` unless ``out_dir`` is given.
+    """
+    from agents.common.runs import read_run
+
+    run_dir = Path(run_dir)
+    args, hp = read_run(run_dir)
+    env_id = args["env"]
+    law = SB3Law.from_path(run_dir, name=f"{args['algo'].upper()} ({run_dir.name})")
+    report = compare(env_id, [law], n_states=n_states, seed=seed,
+                     env_kwargs=hp.get("env_kwargs"), open_loop=open_loop,
+                     n_expert_states=n_expert_states)
+    paths = write_report(report, out_dir or run_dir / "evaluation")
+    print()
+    print(f"## {env_id}: {n_states} dispersed initial states (seed {seed})")
+    print()
+    print(markdown_table(report))
+    print()
+    print("Written: " + ", ".join(str(p) for p in paths.values()))
+    return report
 
 
 def main(argv: list[str] | None = None) -> int:

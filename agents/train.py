@@ -23,9 +23,9 @@ command-line flags override them. Each run directory ``<log-folder>/<algo>/<env 
 
 Agents-side additions selected by YAML keys of the entry (recorded in ``config.yml``):
 ``curriculum`` (start states from optimal trajectories, :mod:`agents.rl.curriculum`),
-``obs_features`` (derived inputs appended to the observation, :mod:`agents.common.features`;
+``obs_features`` (derived inputs appended to the observation, :mod:`agents.rl.features`;
 re-applied
-by :class:`agents.common.sb3_law.SB3Law` when a run is loaded) and ``reward_shaping``
+by :class:`agents.laws.SB3Law` when a run is loaded) and ``reward_shaping``
 (potential-based, policy-invariant, training only, :mod:`agents.rl.shaping`). The env's own
 observation and reward are never changed.
 
@@ -196,7 +196,7 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
     resolve_algo_kwargs(hp, args.algo, n_actions=1)
     check_env(args.env, hp.get("env_kwargs"))
     if hp.get("obs_features"):
-        from agents.common.features import validate_features
+        from agents.rl.features import validate_features
 
         validate_features(hp["obs_features"])
     run = dict(vars(args))
@@ -294,7 +294,7 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     n_eval = 0 if run.get("no_eval") else int(run.get("eval_states") or 0)
     if n_eval > 0:
-        from agents.evaluation.compare import evaluate_run
+        from agents.evaluate import evaluate_run
 
         evaluate_run(run_dir, n_states=n_eval, seed=int(run.get("eval_seed", 2026)),
                      n_expert_states=run.get("eval_expert_states"))

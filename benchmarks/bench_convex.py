@@ -16,9 +16,9 @@ Every SCvx answer is certified (:func:`optimizers.certification.certify`: DOP853
 fuel gap to the certified optimum); also reported: the throttled engine's fuel (the relaxation's
 tightness) and wall-time ratios SCvx / peer.
 
-Part 2 — re-planning. The convex law (``convex:every=10``, :mod:`agents.experts.convex`) flies N
+Part 2 — re-planning. The convex law (``convex:every=10``, :mod:`guidance.laws.convex`) flies N
 dispersed cases of each env (``LunarSoftLanding-v0``, ``LunarPinpointLanding-v2``) with
-:func:`agents.common.rollout.fly`; per re-plan after each lander's first plan: wall time median
+:func:`guidance.flight.fly`; per re-plan after each lander's first plan: wall time median
 and p90 (and the process CPU time); the share of all re-plans' wall time spent inside Clarabel;
 SCvx iterations; the landing rate; and the fuel gap to each case's optimum (the env family's
 per-case solver: Pontryagin planar, GPM + shooting pinpoint, cached on disk). Cases: the
@@ -146,10 +146,9 @@ def bench_replanning(env_id: str, n_cases: int, spec: str, seed: int) -> dict:
     import gymnasium as gym
 
     import lunar_env  # noqa: F401
-    from agents.common.families import family_of
-    from agents.common.law_specs import LawContext, build_law
-    from agents.common.rollout import fly
-    from agents.evaluation.compare import initial_states
+    from guidance.flight import fly, initial_states
+    from guidance.registry import LawContext, build_law
+    from optimizers.optimum import optimum_family
 
     env = gym.make(env_id)
     scenario = env.unwrapped.scenario
@@ -160,7 +159,7 @@ def bench_replanning(env_id: str, n_cases: int, spec: str, seed: int) -> dict:
         out = fly(env_id, law, n_cases, seed=seed)
     wall = time.perf_counter() - t0
     # fuel gap to each case's optimum (the family's per-case solver, cached for pinpoint)
-    optimum = family_of(scenario).per_case_optimum(
+    optimum = optimum_family(scenario).per_case_optimum(
         scenario, initial_states(env_id, n_cases, seed), progress=False)
     both = out.is_success & np.isfinite(optimum.fuel_kg)
     gap = out.fuel_used_kg[both] - optimum.fuel_kg[both]

@@ -212,6 +212,9 @@ class PlanarScenario:
     surface_radius_m: float | None = None
 
     model = "planar"
+    #: the env family of the scenario: the key of every per-family registry
+    #: (:class:`lunar_env.families.FamilyRegistry`)
+    family = "planar"
 
     def __post_init__(self) -> None:
         _check_tf_bounds(self.name, self.tf_bounds_s)
@@ -400,6 +403,8 @@ class PinpointScenario:
     fuel_max_kg: float = math.inf
 
     model = "moon3d"
+    #: the env family of the scenario (:class:`lunar_env.families.FamilyRegistry`)
+    family = "pinpoint"
 
     def __post_init__(self) -> None:
         # The same checks as PlanarScenario, in the pinpoint geometry: every state the

@@ -109,10 +109,10 @@ def test_agents_evaluate_usage_errors(argv, expected, capsys):
     (["--minari", "optimal"], "NAME-v<version>"),
 ])
 def test_agents_dataset_usage_errors(argv, expected, capsys):
-    from agents.dataset import main
+    from agents.imitation.make_dataset import main
 
     line = _usage_error(main, argv, capsys)
-    assert line.startswith("python -m agents.dataset: error:") and expected in line
+    assert line.startswith("lunar dataset: error:") and expected in line
 
 
 @pytest.mark.parametrize("argv, expected", [

@@ -1,3 +1,2 @@
-"""Shared pieces of the agents rooms: run directories, the rollout loop, the SB3 vec-env adapter,
-observation features, the env-family registry and the guidance-law contract.
-"""
+"""Shared pieces of the agents rooms: run directories, the SB3 vec-env adapter, the actor half
+of a policy."""

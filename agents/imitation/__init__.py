@@ -2,7 +2,7 @@
 
 ::
 
-    python -m agents.dataset --n 1000                                   # optimal landings
+    lunar dataset --n 1000                                   # optimal landings
     python -m agents.imitation bc --dataset data/imitation/LunarSoftLanding-v0_n1000_seed0.npz
     python -m agents.imitation dagger --dataset <same> \\
         --init runs/imitation/bc_LunarSoftLanding-v0_1

@@ -33,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
         s = sub.add_parser(mode, help=f"train by {mode.upper()}")
         s.add_argument("--env", default=DEFAULT_ENV_ID)
         s.add_argument("--dataset", default=None,
-                       help="dataset .npz (python -m agents.dataset), or minari:<dataset id> "
+                       help="dataset .npz (lunar dataset), or minari:<dataset id> "
                             "for a Minari dataset of the env")
         s.add_argument("--hyperparams-file", default=str(_HP_FILE))
         s.add_argument("--config", default="default", help="profile: default or e.g. quick")
@@ -102,7 +102,7 @@ def _run_env_kwargs(path: str | Path, env_id: str) -> dict[str, Any]:
 
 
 def _evaluate_cli(args, parser: argparse.ArgumentParser) -> int:
-    """Compare named policies with :func:`agents.evaluation.compare.compare`.
+    """Compare named policies with :func:`guidance.evaluation.compare.compare`.
 
     Policies trained with different env settings (e.g. PPO's 5 s decisions, imitation's 1 s)
     each fly their own env configuration from the same seeded initial states (the dispersion
@@ -110,9 +110,9 @@ def _evaluate_cli(args, parser: argparse.ArgumentParser) -> int:
     merged into one table. The optimiser baselines (open-loop replay, closed-loop expert) run
     with the first configuration; the open-loop replay also with every other one.
     """
-    from agents.common.sb3_law import SB3Law
-    from agents.evaluation.compare import compare
-    from agents.evaluation.report import publish_report
+    from agents.laws import SB3Law
+    from guidance.evaluation.compare import compare
+    from guidance.evaluation.report import publish_report
 
     groups: dict[str, tuple[dict[str, Any], list]] = {}
     with user_input_errors(parser):
@@ -173,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
         resume = True
     else:
         if args.dataset is None:
-            parser.error("--dataset is required (make one with python -m agents.dataset)")
+            parser.error("--dataset is required (make one with lunar dataset)")
         from agents.imitation.sources import open_dataset, run_env_kwargs
 
         with user_input_errors(parser):
@@ -210,7 +210,7 @@ def main(argv: list[str] | None = None) -> int:
         train_dagger(hp, run, run_dir, resume=resume)
     n_eval = int(run.get("eval_states") or 0)
     if n_eval > 0:
-        from agents.evaluation.compare import evaluate_run
+        from agents.evaluate import evaluate_run
 
         evaluate_run(run_dir, n_states=n_eval, seed=int(run.get("eval_seed", 2026)))
     return 0

@@ -13,10 +13,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.common.families import family_of
 from agents.common.runs import save_model_atomic, write_text_atomic
-from agents.experts.family import DaggerRequest
 from agents.imitation.bc import _logger, _save_final, train_bc
+from agents.imitation.families import IMITATION_FAMILIES, DaggerRequest
 from agents.imitation.policy import (
     build_model,
     fit_policy,
@@ -88,7 +87,7 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     ds_inputs = inputs(ds.observations)
     logger = _logger(run_dir, not run.get("no_tensorboard"))
     scenario = get_scenario(ds.meta["scenario"])
-    family = family_of(scenario)
+    family = IMITATION_FAMILIES.of(scenario)
     history_file = run_dir / "dagger_history.yml"
     history = yaml.safe_load(history_file.read_text()) if history_file.exists() else []
     history = [h for h in history if h["iteration"] < start]

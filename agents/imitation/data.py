@@ -109,23 +109,23 @@ def load_dataset(path: str | Path) -> ImitationDataset:
     """
     if not Path(path).is_file():
         raise FileNotFoundError(f"dataset file {path} does not exist; make one with python -m "
-                                "agents.dataset (or give minari:<dataset id>)")
+                                "lunar dataset (or give minari:<dataset id>)")
     try:
         z = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise ValueError(f"dataset file {path} is damaged or not an .npz "
                          f"({type(exc).__name__}: {exc}); regenerate it with python -m "
-                         "agents.dataset (finished shards are kept)") from None
+                         "lunar dataset (finished shards are kept)") from None
     with z:
         if "meta" not in z.files:
             raise ValueError(f"{path} is not an imitation dataset (no 'meta' entry); create one "
-                             "with python -m agents.dataset")
+                             "with lunar dataset")
         meta = json.loads(str(z["meta"]))
         ver = meta.get("format_version")
         if ver != FORMAT_VERSION:
             raise ValueError(f"{path} has dataset format_version {ver!r}; this code reads "
                              f"version {FORMAT_VERSION}: regenerate it with python -m "
-                             "agents.dataset")
+                             "lunar dataset")
         try:
             arrays = {k: z[k] for k in z.files if k != "meta"}
         except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:

@@ -3,14 +3,14 @@ own spaces, each from a certified minimum-fuel trajectory.
 
 ::
 
-    python -m agents.dataset                                   # 1000 trajectories, zhu2007
-    python -m agents.dataset --n 20 --out data/imitation/small.npz --workers 1
-    python -m agents.dataset --n 1000 --workers 2 --out data/imitation/zhu2007_1000.npz  # resumes
+    lunar dataset                                   # 1000 trajectories, zhu2007
+    lunar dataset --n 20 --out data/imitation/small.npz --workers 1
+    lunar dataset --n 1000 --workers 2 --out data/imitation/zhu2007_1000.npz  # resumes
 
 What the trajectories are, how they are labelled and certified is the env family's
-(:meth:`agents.experts.family.EnvFamily.dataset_recipe`; soft landing:
-:mod:`agents.experts.planar.data`, pinpoint: :mod:`agents.experts.pinpoint.data`); this module
-is the generic driver (shards, executor, resume, merge). Soft landing:
+(:meth:`agents.imitation.families.ImitationFamily.dataset_recipe`; soft landing:
+:mod:`agents.imitation.families.planar`, pinpoint: :mod:`agents.imitation.families.
+pinpoint`); this module is the generic driver (shards, executor, resume, merge). Soft landing:
 
 Pipeline
 --------
@@ -39,7 +39,7 @@ Pipeline
    below ``tol_speed_m_s`` / ``tol_radius_m`` and the env replay a success.
 
 Pinpoint (``--env LunarPinpointLanding-v*``): the samples come from the Pontryagin feedback
-expert's own noisy closed-loop flights (:func:`agents.experts.pinpoint.data.
+expert's own noisy closed-loop flights (:func:`agents.imitation.families.pinpoint.
 pinpoint_expert_flights`; ``--noise``).
 
 Parallel, progress, resume: the rows are split into shards of ``shard_size``; shards are tasks
@@ -79,9 +79,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.common.families import family_of
 from agents.common.runs import write_text_atomic
-from agents.experts.flights import make_env
 from agents.imitation.data import (
     FORMAT_VERSION,
     OPTIONAL_PER_TRAJECTORY_KEYS,
@@ -91,6 +89,8 @@ from agents.imitation.data import (
     load_dataset,
     save_dataset,
 )
+from agents.imitation.families import IMITATION_FAMILIES
+from agents.imitation.flights import make_env
 
 __all__ = ["generate", "DEFAULT_ENV_ID", "DEFAULT_OUT"]
 
@@ -133,14 +133,14 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     tol_radius_m, tol_speed_m_s : float, optional
         Certification tolerances. Soft landing: on the solver's terminal errors (default
         1e-3 m, 1e-3 m/s). Pinpoint: on the gate miss and gate speed of the expert's own flight
-        (default :data:`agents.experts.pinpoint.data.PINPOINT_TOLERANCES`), on top of the
-        env's success verdict. (The family's :meth:`~agents.experts.family.EnvFamily.
+        (default :data:`agents.imitation.families.pinpoint.PINPOINT_TOLERANCES`), on top of the
+        env's success verdict. (The family's :meth:`~agents.imitation.families.ImitationFamily.
         dataset_recipe` sets the defaults.)
     max_shards : int, optional
         Stop after this many new shards (simulates an interruption; returns None).
     action_noise : float, optional
         Pinpoint only: standard deviation of the Gaussian noise on the expert's flown actions
-        (default :data:`agents.experts.pinpoint.data.PINPOINT_ACTION_NOISE`; 0 gives the
+        (default :data:`agents.imitation.families.pinpoint.PINPOINT_ACTION_NOISE`; 0 gives the
         optimal trajectories themselves).
     executor : optimizers.common.executor.Executor, optional
         Runs the shards (e.g. a Ray cluster: ``--address``); overrides ``n_workers``. The
@@ -162,7 +162,7 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     sc = env.scenario
     dt_s = float(env.dt_s)
     env.close()
-    recipe = family_of(sc).dataset_recipe(
+    recipe = IMITATION_FAMILIES.of(sc).dataset_recipe(
         sc, int(n), int(seed), n_steps=int(n_steps), check=check, tol_radius_m=tol_radius_m,
         tol_speed_m_s=tol_speed_m_s, action_noise=action_noise)
     rows = recipe.rows

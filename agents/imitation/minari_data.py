@@ -2,9 +2,9 @@
 
 ::
 
-    python -m agents.dataset --n 1000 --minari optimal-v0
+    lunar dataset --n 1000 --minari optimal-v0
     # -> lunar/LunarSoftLanding-v0/optimal-v0 in $MINARI_DATASETS_PATH (~/.minari/datasets)
-    python -m agents.dataset --env LunarPinpointLanding-v2 --n 200 --noise 0 --minari optimal-v0
+    lunar dataset --env LunarPinpointLanding-v2 --n 200 --noise 0 --minari optimal-v0
     python -m agents.imitation bc --dataset minari:lunar/LunarSoftLanding-v0/optimal-v0
 
     >>> import minari
@@ -30,7 +30,7 @@ cannot be re-flown and it is refused; mid-flight restarts (``parent_index >= 0``
 from the env's reset distribution and are left out.
 
 Reference scores (Minari's ``get_normalized_score``): ``ref_min_score`` is the mean return of
-:class:`agents.common.random_law.RandomLaw` flown from the same starts, ``ref_max_score`` the
+:class:`guidance.laws.random.RandomLaw` flown from the same starts, ``ref_max_score`` the
 mean return of the optimal episodes themselves. Minari accepts ``expert_policy`` only
 instead of ``ref_max_score`` (to estimate it by rolling the policy out) and does not store it;
 the exact value is given instead.
@@ -133,7 +133,7 @@ def record_episodes(env_id: str, env_kwargs: dict[str, Any] | None, x0_nd: np.nd
     RuntimeError
         A case did not end within ``max_steps`` (default: the env's time limit / dt + 10).
     """
-    from agents.common.rollout import make_vec
+    from guidance.flight import make_vec
 
     n = len(action_seqs)
     venv = make_vec(env_id, n, env_kwargs)
@@ -203,8 +203,8 @@ def write_minari(ds: ImitationDataset, dataset_id: str, *, source: str | None = 
     import gymnasium as gym
 
     import lunar_env  # noqa: F401  (registers the ids)
-    from agents.common.random_law import RandomLaw
-    from agents.common.rollout import fly
+    from guidance.flight import fly
+    from guidance.laws.random import RandomLaw
 
     env_id = ds.meta["env_id"]
     env_kwargs = dict(ds.meta.get("env_kwargs") or {})

@@ -56,7 +56,7 @@ def run_env_kwargs(env_id: str, dataset_kwargs: dict[str, Any] | None,
                     f"env_kwargs {override!r} is not allowed: it changes the env's {k} from the "
                     f"dataset's {_short(v)} to {_short(now[k])}, and the dataset's samples "
                     f"depend on it; keep the dataset's value or make a dataset with the new "
-                    f"one (python -m agents.dataset --env-kwargs ...). A run may change the "
+                    f"one (lunar dataset --env-kwargs ...). A run may change the "
                     f"other env arguments (e.g. uncertainty), not "
                     f"{', '.join(DATASET_BOUND_ENV_KWARGS)}")
     return base | override

@@ -17,7 +17,7 @@ Montezuma's Revenge from a single demonstration"). The policy is never shown an 
 only states to start from.
 
 Soft landing: Pontryagin optima. Pinpoint landing: the env's per-case optimum of
-:mod:`agents.experts.pinpoint.optimum` (serial GPM + direct shooting, cached), its shooting nodes
+:mod:`optimizers.optimum.pinpoint` (serial GPM + direct shooting, cached), its shooting nodes
 as the
 pool.
 """
@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
-from agents.common.families import family_of
+from agents.rl.starts import START_FAMILIES
 from lunar_env.validation import require_finite_positive, require_integer, require_number
 
 __all__ = ["ErrorScaleCurriculum", "OptimalStartCurriculum", "optimal_start_pool"]
@@ -39,7 +39,7 @@ __all__ = ["ErrorScaleCurriculum", "OptimalStartCurriculum", "optimal_start_pool
 def optimal_start_pool(scenario, n_trajectories: int, seed: int, n_points: int = 101,
                        progress: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """States along minimum-fuel trajectories of ``n_trajectories`` dispersed cases, from the
-    scenario's env family (:meth:`agents.experts.family.EnvFamily.start_pool`).
+    scenario's env family (:meth:`agents.rl.starts.StartFamily.start_pool`).
 
     Returns
     -------
@@ -49,7 +49,7 @@ def optimal_start_pool(scenario, n_trajectories: int, seed: int, n_points: int =
     times_s : ndarray, shape (n_ok, n_points)
         Time since the case's initial state (s).
     """
-    return family_of(scenario).start_pool(scenario, n_trajectories, seed, n_points=n_points,
+    return START_FAMILIES.of(scenario).start_pool(scenario, n_trajectories, seed, n_points=n_points,
                                           progress=progress)
 
 
@@ -109,7 +109,7 @@ class OptimalStartCurriculum(VecEnvWrapper):
             native.scenario, n_trajectories, seed if pool_seed is None else int(pool_seed),
             progress=progress)
         self.pool_build_s = time.perf_counter() - t0
-        self.family = family_of(native.scenario)
+        self.family = START_FAMILIES.of(native.scenario)
         self.start_noise_nd = (self.family.start_noise_nd(native.scenario, start_noise)
                                if start_noise else None)
         self.num_timesteps = 0

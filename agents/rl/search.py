@@ -149,10 +149,10 @@ def run_trial(storage_url: str, study_name: str, index: int, hp_base: dict, run_
     import optuna
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from agents.common.sb3_law import SB3Law
-    from agents.evaluation.compare import rollout
     from agents.hyperparams import apply_overrides
+    from agents.laws import SB3Law
     from agents.rl.training import train
+    from guidance.flight import rollout
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     seed = int(run_base["seed"]) + int(index)

@@ -36,8 +36,8 @@ def score_candidates(candidates: list[tuple[int, Path]], env_id: str,
     :func:`agents.common.runs.load_trained` or None, ``success_rate``, ``fuel_mean_kg`` of its
     landings), in the candidates' order. Prints one line per candidate."""
     from agents.common.runs import load_trained
-    from agents.common.sb3_law import SB3Law
-    from agents.evaluation.compare import rollout
+    from agents.laws import SB3Law
+    from guidance.flight import rollout
 
     if int(n_states) < 1:
         raise ValueError(f"n_states={n_states!r} must be >= 1")

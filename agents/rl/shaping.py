@@ -49,14 +49,17 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
 
-from agents.common.families import family_named
-from agents.common.features import feature_constants
+from agents.rl.features import feature_constants
 from lunar_env.validation import require_number
 
 __all__ = ["PotentialShaping", "resolve_success_bonus", "surface_speed_m_s"]
 
-#: every potential; which of them fit an env, its family says (``shaping_potentials()``)
+#: every potential; which of them fit an env, :data:`FAMILY_POTENTIALS` says
 POTENTIALS = ("surface_speed", "gate_speed_and_range")
+#: the potentials that fit each env family (``scenario.family``): the soft landing's surface
+#: speed, the pinpoint landing's gate speed and range
+FAMILY_POTENTIALS: dict[str, tuple[str, ...]] = {"planar": ("surface_speed",),
+                                                 "pinpoint": ("gate_speed_and_range",)}
 
 
 def gate_speed_and_range(obs: np.ndarray, consts: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -112,7 +115,7 @@ class PotentialShaping(VecEnvWrapper):
         if native is None:
             raise TypeError("PotentialShaping needs a LanderSB3VecEnv of LunarSoftLanding-v0")
         self.consts = feature_constants(native)
-        allowed = tuple(family_named(self.consts["family"]).shaping_potentials())
+        allowed = FAMILY_POTENTIALS.get(self.consts["family"], ())
         if potential not in allowed:
             raise ValueError(f"potential={potential!r} does not fit this env: use one of "
                              f"{allowed}")

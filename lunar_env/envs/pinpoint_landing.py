@@ -226,6 +226,17 @@ class PinpointTask(LandingTask):
                          self.throttle_channel, u)
         return u
 
+    def actions_from_controls(self, u: np.ndarray) -> np.ndarray:
+        """Actions (B, n_act) float32 of controls (α, β rad, throttle) (B, 3):
+        :func:`action_from_angles` on the scenario's bounds, and 2·throttle − 1 with a throttle
+        channel."""
+        u = np.asarray(u, dtype=np.float64)
+        sc = self.scenario
+        act = action_from_angles(u[:, 0], u[:, 1], sc.alpha_bounds_rad, sc.beta_bounds_rad)
+        if self.throttle_channel:
+            act = np.concatenate([act, (2.0 * u[:, 2] - 1.0)[:, None]], axis=1)
+        return act.astype(np.float32)
+
     def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """SI quantities encoded in observations (B, 9): the inverse of :meth:`observation`
         (exact inside the observation bounds). Keys: ``altitude_m`` (above the gate),

@@ -189,6 +189,15 @@ class PlanarTask(LandingTask):
         _controls_kernel(float_array(a), self.throttle_channel, u)
         return u
 
+    def actions_from_controls(self, u: np.ndarray) -> np.ndarray:
+        """Actions (B, n_act) float32 of controls (φ rad, throttle) (B, 2):
+        :func:`action_from_thrust_angle`, and 2·throttle − 1 with a throttle channel."""
+        u = np.asarray(u, dtype=np.float64)
+        act = action_from_thrust_angle(u[:, 0])[:, None]
+        if self.throttle_channel:
+            act = np.concatenate([act, (2.0 * u[:, 1] - 1.0)[:, None]], axis=1)
+        return act.astype(np.float32)
+
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Observations (B, 5) float32 (see Observation Space in the env's manual)."""
         out = np.empty((len(y), 5), dtype=np.float32)

@@ -268,6 +268,13 @@ class LandingTask(metaclass=_FrozenAfterInit):
         ``a`` (B, n_act) (clipped to [-1, 1] here)."""
 
     @abc.abstractmethod
+    def actions_from_controls(self, u: np.ndarray) -> np.ndarray:
+        """Actions (B, n_act) float32 of model controls ``u`` (B, model.n_control) (thrust
+        angles in rad, then the throttle in [0, 1]): the inverse of
+        :meth:`controls_from_actions` within the action bounds (angles beyond them clip to
+        ±1; without a throttle channel the throttle is left out)."""
+
+    @abc.abstractmethod
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Observations (B, n_obs) float32 of states ``y`` (B, n_state) at times ``t_s`` (B,)
         (s), scaled and clipped to the observation space."""

@@ -94,7 +94,7 @@ result.OptimResult`), :class:`PontryaginGuess`, :func:`nominal_guess`, :func:`re
 the state–costate system is in :mod:`.planar_system`, the Newton iteration in :mod:`.newton`,
 batches in :mod:`.batch` (:func:`~.batch.solve_many`), the command line in
 :mod:`.cli`. The closed-loop re-planning expert built on them is
-:class:`agents.experts.planar.expert.PontryaginExpert`.
+:class:`guidance.laws.pontryagin_planar.PontryaginExpert`.
 
 >>> from lunar_env import get_scenario
 >>> sol = solve_planar_min_fuel(get_scenario("zhu2007"))   # doctest: +SKIP

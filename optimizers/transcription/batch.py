@@ -22,7 +22,7 @@ crash; measured cost of the constraint there: < 0.01 kg), plus a smooth clearanc
   scenarios share it, and a scenario never receives another's problem (an ``id()`` key could,
   once the first scenario is garbage-collected and its id reused).
 - **Storage** is the caller's: ``store(key, optimum)`` runs as soon as each case is solved, in
-  the process that solved it (e.g. the on-disk cache of :mod:`agents.experts.pinpoint.optimum`).
+  the process that solved it (e.g. the on-disk cache of :mod:`optimizers.optimum.pinpoint`).
 
 :class:`PinpointOptimum` holds a solution as the shooting's node controls (piecewise linear in
 time, exactly the law the optimiser optimised) and the replayed states at the nodes, enough for

@@ -1,4 +1,4 @@
-"""Per-case optimum of LunarPinpointLanding-v0 (agents.experts.pinpoint.optimum) and its evaluation
+"""Per-case optimum of LunarPinpointLanding-v0 (optimizers.optimum.pinpoint) and its evaluation
 row."""
 
 from __future__ import annotations
@@ -6,8 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import agents.experts.pinpoint.optimum as po
-from agents.evaluation.compare import _summary, initial_states, rollout
+import optimizers.optimum.pinpoint as po
+from guidance.evaluation.compare import _summary
+from guidance.families.pinpoint import PinpointOpenLoopLaw
+from guidance.flight import initial_states, rollout
 from optimizers.transcription.batch import PinpointOptimum
 
 ENV_ID = "LunarPinpointLanding-v0"
@@ -50,7 +52,7 @@ def test_optimum_from_env_states_is_cached_atomically(scenario, tmp_path, monkey
 
     # the open-loop replay of the optimum flies the same cases in the env, and the summary
     # reports fuel and final-time gaps against the per-case optimum
-    res = rollout(ENV_ID, po.PinpointOpenLoopLaw(again), 2, 2026, {"dt_s": 0.5})
+    res = rollout(ENV_ID, PinpointOpenLoopLaw(again), 2, 2026, {"dt_s": 0.5})
     row = _summary(res, np.array([o.fuel_kg for o in again]), np.array([o.tf_s for o in again]))
     assert row["optimal_fuel_mean_kg"] == pytest.approx(np.mean([o.fuel_kg for o in again]))
     assert "final_time_gap_pct" in row
@@ -70,9 +72,9 @@ def test_bad_inputs(scenario, tmp_path):
 
 
 def test_pinpoint_features_decode_and_shaping():
-    from agents.common.features import ObsFeatureWrapper, augment_observation, feature_constants
     from agents.common.vec_env import make_sb3_vec_env
-    from agents.experts.pinpoint.features import PINPOINT_FEATURE_WIDTHS
+    from agents.rl.features import ObsFeatureWrapper, augment_observation, feature_constants
+    from agents.rl.features.pinpoint import PINPOINT_FEATURE_WIDTHS
     from agents.rl.shaping import PotentialShaping, gate_speed_and_range
     from lunar_env import dynamics as dyn
 
@@ -146,7 +148,7 @@ def test_reference_profile_and_stop_point_features():
     import gymnasium as gym
 
     import lunar_env  # noqa: F401
-    from agents.common.features import augment_observation, feature_constants
+    from agents.rl.features import augment_observation, feature_constants
     from optimizers.indirect.pinpoint_feedback import (
         PinpointFeedback,
         extremal_path,

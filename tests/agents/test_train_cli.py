@@ -7,9 +7,10 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from agents import train as tr
 from agents.common.runs import latest_checkpoint
-from agents.common.sb3_law import SB3Law
-from agents.evaluation.compare import compare, rollout
-from agents.evaluation.report import markdown_table
+from agents.laws import SB3Law
+from guidance.evaluation.compare import compare
+from guidance.evaluation.report import markdown_table
+from guidance.flight import rollout
 
 ENV_ID = "LunarSoftLanding-v0"
 QUICK = ["--quick", "--no-progress", "--verbose", "0", "--torch-threads", "1"]
@@ -139,7 +140,7 @@ def test_seed_makes_a_run_repeatable(tmp_path):
 def test_evaluation_is_deterministic_and_cases_do_not_depend_on_batch(tmp_path):
     from stable_baselines3 import PPO
 
-    from agents.evaluation.compare import initial_states
+    from guidance.flight import initial_states
 
     venv = tr.make_training_env(ENV_ID, 2, seed=0)
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", n_steps=64, batch_size=64)

@@ -177,8 +177,8 @@ def test_optimal_pinpoint_landing_is_landable_and_ranked_best(env_id):
     fine = replay_in_env(nominal, solver.ocp, dt_s=0.25, substeps=2)
     assert fine["is_success"] and fine["touchdown_speed_m_s"] < 2.0
     assert fine["miss_distance_m"] < 5.0
-    # the return ranking of agents.evaluation.reward_ranking (same env, nominal start)
-    from agents.evaluation.reward_ranking import rank_strategies
+    # the return ranking of agents.rl.reward_ranking (same env, nominal start)
+    from agents.rl.reward_ranking import rank_strategies
 
     ranking = rank_strategies(env_id, n_random=20)
     names = list(ranking)

@@ -34,7 +34,7 @@ def test_bad_thrust_level():
 
 
 def test_evaluate_compares_with_the_per_case_optimum_at_that_thrust():
-    from agents.evaluation.compare import compare
+    from guidance.evaluation.compare import compare
 
     rep = compare(ENV_ID, [], n_states=1, n_expert_states=0, progress=False,
                   env_kwargs={"scenario": "wang2003", "thrust_n": 2929.0})

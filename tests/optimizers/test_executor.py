@@ -324,9 +324,9 @@ def test_pinpoint_optima_on_an_executor(tmp_path):
     the quick version of the routing is test_solve_many_on_an_executor_matches_serial)."""
     import gymnasium as gym
 
-    import agents.experts.pinpoint.optimum as po
     import lunar_env  # noqa: F401
-    from agents.evaluation.compare import initial_states
+    import optimizers.optimum.pinpoint as po
+    from guidance.flight import initial_states
 
     scenario = gym.make("LunarPinpointLanding-v0").unwrapped.scenario
     states = initial_states("LunarPinpointLanding-v0", 2, 2026)

@@ -39,6 +39,7 @@ def position_bias_m(summary: dict, axis: int = 0) -> np.ndarray:
     """Component ``axis`` (0 up, 1 downrange, 2 crossrange) of the navigation position bias (m)
     of every case of a campaign."""
     from agents.evaluation.campaign import _starts
+
     from lunar_env.uncertainty import UncertaintyModel
 
     model = UncertaintyModel(**summary["uncertainty_model"])

@@ -26,8 +26,8 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-
 from agents.common.law import GuidanceLaw, Navigation
+
 from agents.common.runs import write_text_atomic
 from lunar_env.uncertainty import radar_weight, resolve_uncertainty
 
@@ -65,9 +65,10 @@ class AltitudeMargin(GuidanceLaw):
 
 
 def main(argv: list[str]) -> None:
-    from agents.common.runs import read_run
     from agents.common.sb3_law import SB3Law
     from agents.evaluation.compare import rollout
+
+    from agents.common.runs import read_run
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run")

@@ -16,11 +16,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
-
-from agents.common import law_specs
 from agents.common.law import GuidanceLaw
 from agents.common.sb3_law import SB3Law
 from agents.experts.pinpoint.engine_estimate import ThrustScaleEstimator
+
+from agents.common import law_specs
 from lunar_env.envs.pinpoint_landing import angles_from_action
 
 

@@ -24,9 +24,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from agents.evaluation.campaign import fly_chunk
 
 from agents.common.runs import write_text_atomic
-from agents.evaluation.campaign import fly_chunk
 from lunar_env.uncertainty import get_uncertainty
 
 ENV_ID = "LunarPinpointLanding-v2"

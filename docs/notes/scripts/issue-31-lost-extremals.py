@@ -36,7 +36,6 @@ class LoggedLaw:
 
     def __init__(self, env_id: str, env_kwargs: dict, spec: str) -> None:
         import gymnasium as gym
-
         from agents.common.law_specs import LawContext, build_law
 
         env = gym.make(env_id, **env_kwargs).unwrapped

@@ -124,6 +124,7 @@ def _merit(o: Outcome) -> float:
 
 def env_kwargs() -> dict[str, Any]:
     from agents.evaluation.campaign import _env_kwargs
+
     from lunar_env.uncertainty import resolve_uncertainty
 
     return _env_kwargs(ENV_KWARGS, resolve_uncertainty("standard").as_dict(), 1.0)
@@ -168,6 +169,7 @@ def pontryagin_diagnosis(scenario, c: Case) -> dict[str, Any]:
     """``plant_optimum_fuel``'s steps on one case, with the reason of a NaN, and a
     continuation of the thrust scale from 1 toward the case's value."""
     from agents.experts.family import plant_scenario
+
     from optimizers.indirect.pinpoint_feedback import (
         TARGET_REACHED_M,
         PinpointFeedback,
@@ -319,6 +321,7 @@ def feedback_law(scenario, c: Case, believed_thrust_scale: float):
     """Closed-loop Pontryagin feedback of an engine of ``believed_thrust_scale`` (true Isp),
     on the true state, the case's misalignment steered out; returns (law, status counts)."""
     from agents.experts.family import plant_scenario
+
     from lunar_env.envs.pinpoint_landing import action_from_angles
     from optimizers.indirect.pinpoint_feedback import PinpointFeedback
 
@@ -424,6 +427,7 @@ def direct_transcription(scenario, c: Case, warm=None):
     minimum fuel to rest at the target, with the env's gate path constraint and the propellant
     bound. Independent of the indirect (Pontryagin) shooting that returned NaN."""
     from agents.experts.family import plant_scenario
+
     from optimizers.transcription.batch import solve_case
 
     return solve_case(plant_scenario(scenario, c.thrust_scale, c.isp_scale), c.x0, warm)
@@ -534,8 +538,9 @@ def run_case(scenario, c: Case, *, knots: int, iters: int, case_budget_s: float,
 
 def write_json(path: Path, obj: dict[str, Any]) -> None:
     """``obj`` written to ``path`` atomically (non-finite floats as null)."""
-    from agents.common.runs import write_text_atomic
     from agents.evaluation.campaign import _json_safe
+
+    from agents.common.runs import write_text_atomic
 
     path.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(path, json.dumps(_json_safe(obj), indent=1, allow_nan=False))

@@ -18,12 +18,12 @@ import argparse
 import gymnasium as gym
 import numpy as np
 import yaml
-
-import lunar_env  # noqa: F401
 from agents.common.law_specs import LawContext, build_law
 from agents.common.rollout import fly
 from agents.experts.pinpoint.data import LawRolloutTeacher
 from agents.experts.pinpoint.engine_estimate import ThrustScaleEstimator
+
+import lunar_env  # noqa: F401
 from agents.imitation.policy import load_learner
 from lunar_env.envs.pinpoint_landing import angles_from_action
 

@@ -17,7 +17,6 @@ import argparse
 import sys
 
 import numpy as np
-
 from agents.common.law_specs import LawContext, build_law
 from agents.common.rollout import fly
 

@@ -15,10 +15,10 @@ import sys
 
 import gymnasium as gym
 import numpy as np
-
-import lunar_env  # noqa: F401
 from agents.common.rollout import fly
 from agents.experts.pinpoint.expert import PinpointReserveExpert
+
+import lunar_env  # noqa: F401
 
 ENV_ID = "LunarPinpointLanding-v2"
 

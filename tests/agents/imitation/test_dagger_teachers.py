@@ -10,8 +10,8 @@ import warnings
 import numpy as np
 import pytest
 
-from agents.experts.planar import data as pd
-from agents.experts.planar.expert import PontryaginExpert, planar_state_si
+from agents.imitation.families import planar as pd
+from guidance.laws.pontryagin_planar import PontryaginExpert, planar_state_si
 from lunar_env import get_scenario
 
 ENV_ID = "LunarSoftLanding-v0"
@@ -123,7 +123,7 @@ def test_navigated_teacher_plans_from_the_navigation_solution():
 
 
 def test_bad_teacher_is_refused_by_name():
-    from agents.experts.family import DaggerRequest
+    from agents.imitation.families import DaggerRequest
 
     eps = [{"obs": np.zeros((1, 5), np.float32), "state_nd": np.ones((1, 5)),
             "t_s": np.zeros(1)}]
@@ -184,3 +184,38 @@ def test_planning_thrust_margin_plans_for_a_weaker_engine():
         with pytest.raises(ValueError, match="planning_thrust_scale"):
             pd.label_episodes(eps, SCENARIO, DT_S, LABEL_EVERY, 0.0, progress=False,
                               planning_thrust_scale=bad)
+
+
+def test_dataset_recipes_of_both_families():
+    """Each family answers what its imitation dataset is made of (rows, names, tolerances,
+    label rule, a module-level shard task), and refuses options it does not take."""
+    from agents.imitation.families import IMITATION_FAMILIES, DatasetRecipe
+    from agents.imitation.flights import make_env
+    from optimizers.common.executor import check_importable
+
+    opts = {"n_steps": 200, "check": "grid", "tol_radius_m": None, "tol_speed_m_s": None}
+    planar_sc = get_scenario("zhu2007")
+    rec = IMITATION_FAMILIES.of(planar_sc).dataset_recipe(planar_sc, 3, 4, action_noise=None,
+                                                          **opts)
+    assert isinstance(rec, DatasetRecipe) and rec.rows.shape == (3, 5)
+    np.testing.assert_array_equal(
+        rec.rows, planar_sc.sample_initial(np.random.default_rng(4), 3))  # SI rows
+    assert rec.tolerances == (1e-3, 1e-3) and len(rec.observation_names) == 5
+    assert rec.job_args == {"n_steps": 200, "check": "grid"}
+    assert check_importable(rec.shard_fn).__module__ == "agents.imitation.families.planar"
+    with pytest.raises(ValueError, match="action_noise = 0.1: defined for the pinpoint env"):
+        IMITATION_FAMILIES.of(planar_sc).dataset_recipe(planar_sc, 3, 4, action_noise=0.1, **opts)
+
+    env = make_env("LunarPinpointLanding-v2", None)
+    pp_sc = env.scenario
+    env.close()
+    fam = IMITATION_FAMILIES.of(pp_sc)
+    rec = fam.dataset_recipe(pp_sc, 2, 0, action_noise=None,
+                             **dict(opts, tol_speed_m_s=3.0))
+    assert rec.rows.shape == (2, 7) and rec.tolerances == (500.0, 3.0)
+    assert len(rec.observation_names) == env.observation_space.shape[0]
+    assert rec.job_args == {"action_noise": 0.02} and rec.solver["action_noise"] == 0.02
+    assert check_importable(rec.shard_fn).__module__ == "agents.imitation.families.pinpoint"
+    for bad in (-0.1, float("nan")):
+        with pytest.raises(ValueError, match="action_noise = .* must be finite and >= 0"):
+            fam.dataset_recipe(pp_sc, 2, 0, action_noise=bad, **opts)

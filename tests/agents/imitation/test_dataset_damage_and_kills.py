@@ -72,7 +72,7 @@ def test_damaged_dataset_shard_is_named_and_solved_again(reference_dataset, tmp_
 
 _DATASET_CLI = """
     import sys
-    from agents.dataset import main
+    from agents.imitation.make_dataset import main
     sys.exit(main(sys.argv[1:]))
 """
 

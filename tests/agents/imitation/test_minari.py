@@ -1,5 +1,5 @@
 """Minari export of the certified optimal flights (agents.imitation.minari_data): written by
-``python -m agents.dataset --minari``, read back bit for bit in a fresh process, the env
+``lunar dataset --minari``, read back bit for bit in a fresh process, the env
 recovered from the dataset replays it, and BC reads it through ``--dataset minari:ID``."""
 
 from __future__ import annotations

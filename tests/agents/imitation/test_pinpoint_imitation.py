@@ -85,7 +85,7 @@ def test_pinpoint_dataset_is_certified_by_the_env(pinpoint_dataset):
 
 def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, pinpoint_bc, tmp_path):
     import agents.imitation.cli as im
-    from agents.common.sb3_law import SB3Law
+    from agents.laws import SB3Law
 
     root, _ = pinpoint_dataset
     path = root / "pp.npz"
@@ -121,7 +121,7 @@ def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, pinpoint_bc, tmp_path):
     # CI version of the fine-tuning stage: the from_dagger profile starts PPO from the clone,
     # with the clone's input standardisation and raw observations
     import agents.train as tr
-    from agents.common.features import StandardizedInputs
+    from agents.rl.features import StandardizedInputs
 
     ft_dir = tmp_path / "ft"
     assert tr.main(["--env", ENV_ID, "--config", "from_dagger", "--init-from", str(dg_dir),
@@ -138,7 +138,7 @@ def test_dagger_rollouts_mix_expert_and_policy(pinpoint_bc):
     expert (up to a random switch time), so none counts as policy-only. The roll-outs fly 4 s
     decisions (the clone was trained at 1 s): what is checked is the mixing, and a quarter of
     the expert's solves keeps this the cheap twin of a DAgger iteration (issue 33)."""
-    import agents.experts.pinpoint.data as lab_mod
+    import agents.imitation.families.pinpoint as lab_mod
     from agents.imitation.policy import load_learner
 
     bc_dir = pinpoint_bc
@@ -160,11 +160,11 @@ def test_dagger_rollouts_mix_expert_and_policy(pinpoint_bc):
 
 
 def test_dataset_cli_runs_as_a_module(tmp_path):
-    """Regression: ``python -m agents.dataset`` failed before any work ("task function
+    """Regression: ``lunar dataset`` failed before any work ("task function
     _shard_work is defined in __main__") because the shard function was taken from __main__."""
     out = tmp_path / "small.npz"
-    res = subprocess.run([sys.executable, "-m", "agents.dataset", "--n", "2", "--shard-size",
-                          "2", "--workers", "1", "--no-progress", "--out", str(out)],
+    res = subprocess.run([sys.executable, "-m", "agents.imitation.make_dataset", "--n", "2",
+                          "--shard-size", "2", "--workers", "1", "--no-progress", "--out", str(out)],
                          capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-2000:]
     assert out.exists()
@@ -201,8 +201,8 @@ def test_same_view_teacher_labels_every_decision_and_flies_until_its_switch():
     """Issue 31: the law teacher (a guidance law on the navigation solution) is asked at every
     decision, whoever flies; its actions are the labels of the active landers; the learner
     flies each lander after that lander's switch time."""
-    from agents.common.law import CallableLaw, Navigation
-    from agents.experts.pinpoint.data import LawRolloutTeacher
+    from agents.imitation.families.pinpoint import LawRolloutTeacher
+    from guidance.law import CallableLaw, Navigation
 
     asked = []
 
@@ -230,8 +230,8 @@ def test_same_view_teacher_is_told_the_actions_flown():
     """The law's memory must follow the flight (issue 31, seventeenth session: the window
     law's thrust estimate, fed its own controls while the student flew, was 8 % off): the
     roll-out tells it the actions flown, the learner's after its switch, its own before."""
-    from agents.common.law import CallableLaw, Navigation
-    from agents.experts.pinpoint.data import LawRolloutTeacher
+    from agents.imitation.families.pinpoint import LawRolloutTeacher
+    from guidance.law import CallableLaw, Navigation
 
     told = []
 
@@ -254,8 +254,8 @@ def test_same_view_teacher_is_told_the_actions_flown():
 def test_same_view_teacher_drops_the_laws_guesses():
     """A law that reports a per-row status (the reserve law's ``last_status``): its guesses
     (no converged solve, "stale" / "fallback") are flown but not recorded as labels."""
-    from agents.common.law import CallableLaw, Navigation
-    from agents.experts.pinpoint.data import LawRolloutTeacher
+    from agents.imitation.families.pinpoint import LawRolloutTeacher
+    from guidance.law import CallableLaw, Navigation
 
     law = CallableLaw(lambda nav: np.zeros((nav.n, 3), dtype=np.float32), "teacher")
     law.last_status = ["optimal", "stale", "fallback", "window"]
@@ -270,7 +270,7 @@ def test_same_view_teacher_drops_the_laws_guesses():
 
 
 def test_privileged_law_is_refused_as_a_same_view_teacher():
-    from agents.experts.pinpoint.data import DaggerRolloutTeacher, LawRolloutTeacher
+    from agents.imitation.families.pinpoint import DaggerRolloutTeacher, LawRolloutTeacher
 
     privileged = DaggerRolloutTeacher(None, None, np.zeros(1))
     with pytest.raises(ValueError, match="same-view teacher"):
@@ -278,7 +278,7 @@ def test_privileged_law_is_refused_as_a_same_view_teacher():
 
 
 def test_bad_teacher_law_is_refused_before_flying(pinpoint_bc):
-    import agents.experts.pinpoint.data as lab_mod
+    import agents.imitation.families.pinpoint as lab_mod
     from agents.imitation.policy import load_learner
 
     with pytest.raises(ValueError, match="unknown law 'nope'"):
@@ -292,7 +292,7 @@ def test_dagger_rollouts_with_a_law_teacher_on_the_throttled_engine(tmp_path):
     uncertain env: every label has the env's three channels (angles and throttle), and the
     learner's roll-out is scored. The learner here is a fixed action (no policy file needed:
     ``load_learner`` is any module-level loader)."""
-    import agents.experts.pinpoint.data as lab_mod
+    import agents.imitation.families.pinpoint as lab_mod
 
     env_kwargs = {"dt_s": 4.0, "throttle_channel": True, "uncertainty": "standard"}
     lab, roll = lab_mod.pinpoint_dagger_rollouts(
@@ -319,8 +319,9 @@ def test_expert_flights_on_a_throttled_engine_keep_full_thrust_without_noise():
     import gymnasium as gym
 
     import lunar_env  # noqa: F401
-    from agents.common.law import FlightComputer, Navigation, Truth
-    from agents.experts.pinpoint.data import ExpertFlightTeacher
+    from agents.imitation.families.pinpoint import ExpertFlightTeacher
+    from guidance.law import FlightComputer, Navigation, Truth
+    from lunar_env.envs.pinpoint_landing import angles_from_action
 
     env = gym.make(ENV_ID, throttle_channel=True).unwrapped
     n = 3
@@ -334,7 +335,11 @@ def test_expert_flights_on_a_throttled_engine_keep_full_thrust_without_noise():
             pass
 
         def labels(self, states, times, active):
-            return np.zeros((n, 2)), np.full((n, 2), 0.25, dtype=np.float32), active.copy()
+            sc = env.scenario
+            alpha, beta = angles_from_action(np.array([0.25, 0.25]), sc.alpha_bounds_rad,
+                                             sc.beta_bounds_rad)
+            return (np.tile([alpha, beta], (n, 1)), np.full((n, 2), 0.25, dtype=np.float32),
+                    active.copy())
 
     teacher = ExpertFlightTeacher(Expert(), n, 0.3, np.random.default_rng(0))
     teacher.reset(FlightComputer.of(env, ENV_ID), np.arange(n))
@@ -345,4 +350,5 @@ def test_expert_flights_on_a_throttled_engine_keep_full_thrust_without_noise():
     np.testing.assert_array_equal(flown[:, 2], 1.0)
     assert np.all(flown[:, :2] != 0.25)  # the angles carry the noise
     for i in range(n):
-        np.testing.assert_allclose(teacher.records["actions"][i][0], [0.25, 0.25, 1.0])
+        np.testing.assert_allclose(teacher.records["actions"][i][0], [0.25, 0.25, 1.0],
+                                   rtol=0, atol=1e-6)

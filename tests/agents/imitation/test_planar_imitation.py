@@ -1,5 +1,5 @@
 """Imitation from optimal trajectories: dataset format and resume, BC into SB3 PPO, DAgger,
-evaluation — the quick end-to-end version of ``agents.dataset`` / ``agents.imitation``."""
+evaluation — the quick end-to-end version of ``lunar dataset`` / ``agents.imitation``."""
 
 from __future__ import annotations
 
@@ -107,8 +107,8 @@ def test_bc_dagger_end_to_end(small_dataset, tmp_path):
     import torch as th
     from stable_baselines3 import PPO
 
-    from agents.common.sb3_law import SB3Law
-    from agents.evaluation.compare import compare
+    from agents.laws import SB3Law
+    from guidance.evaluation.compare import compare
 
     path, ds = small_dataset
     bc_dir = tmp_path / "bc"
@@ -225,7 +225,7 @@ def test_dagger_label_parts_resume_from_the_result_store(small_dataset, tmp_path
     """Planar DAgger labels are executor tasks with a ResultStore: a re-run reuses every stored
     part and labels only the missing ones (a kill loses only the tasks in flight), with the
     same labels."""
-    import agents.experts.planar.data as pd
+    import agents.imitation.families.planar as pd
     from lunar_env import get_scenario
 
     _, ds = small_dataset

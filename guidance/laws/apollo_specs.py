@@ -1,0 +1,85 @@
+"""``--laws`` factories of the explicit laws (:mod:`guidance.registry`).
+
+Syntax (``NAME[:KEY=VALUE,...]``, no argument)::
+
+    apollo                       augmented Apollo with k_r = 12 ([K74])
+    zem-zev                      augmented Apollo with k_r = 6 ([GHW])
+    apollo:kr=10                 any gain in [6, 24]
+    apollo:kr=9,tgo_margin=0.02,lead=2.2
+    zem-zev:tgo=rocket           another t_go rule (matched, matched-short, rocket, countdown)
+    zem-zev:rotation=0           3D: leave the Moon's Coriolis/centrifugal terms out
+    apollo:tgo=rocket,terminal=4 a constant-thrust finish against the velocity (t_go ≤ 4 s)
+    apollo:tgo=rocket,tgo_margin=0.02,aim=5   aim 5 m above the gate (3D, constant thrust)
+    gravity-turn                 thrust opposite the surface-relative velocity
+
+Options of ``apollo`` / ``zem-zev``:
+
+=============  ==============================================================  ==========
+key            meaning                                                         default
+=============  ==============================================================  ==========
+``kr``         gain k_r ∈ [6, 24]                                              12 / 6
+``tgo_margin`` μ in t_go = (1 + μ)·t_rule, ∈ [−0.5, 1]                          0
+``lead``       lead time τ (s) ∈ [0, 10] (Luminary: 2.2)                       0
+``tgo``        t_go rule (:data:`~guidance.laws.apollo.TGO_RULES`)     matched
+               (``countdown`` on a throttled engine)
+``rotation``   1/0: the Moon's rotation terms in the known acceleration (3D)   1
+``terminal``   constant thrust: t_go (s) ∈ [0, 60] below which the law thrusts  0 (off)
+               against the velocity (gravity-turn finish)
+``aim``        aim point (m) ∈ [0, 100] above the terminal surface             0
+=============  ==============================================================  ==========
+
+``gravity-turn`` takes ``rotation`` only. The engine (constant thrust or throttled) is the
+env's: ``throttle_channel`` in the env keyword arguments.
+"""
+
+from __future__ import annotations
+
+from guidance.explicit import K_R_APOLLO, K_R_ZEM_ZEV
+from guidance.law import GuidanceLaw
+from guidance.laws.apollo import AugmentedApolloLaw, GravityTurnLaw
+from guidance.registry import flag
+
+__all__ = ["apollo_from_spec", "zem_zev_from_spec", "gravity_turn_from_spec"]
+
+_OPTIONS = ("kr", "tgo_margin", "lead", "tgo", "rotation", "terminal", "aim")
+
+
+def _no_argument(spec) -> None:
+    if spec.argument is not None:
+        raise ValueError(f"law {spec.text!r} takes no argument (got {spec.argument!r}); "
+                         "options are KEY=VALUE")
+
+
+def _augmented(spec, default_k_r: float) -> GuidanceLaw:
+    spec.require_known_options(_OPTIONS)
+    _no_argument(spec)
+    try:
+        return AugmentedApolloLaw(
+            k_r=spec.option("kr", float, default_k_r),
+            tgo_margin=spec.option("tgo_margin", float, 0.0),
+            lead_s=spec.option("lead", float, 0.0),
+            tgo_rule=spec.option("tgo", str, None),
+            include_rotation=spec.option("rotation", flag, True),
+            terminal_s=spec.option("terminal", float, 0.0),
+            aim_above_m=spec.option("aim", float, 0.0),
+            name=spec.text or spec.name)
+    except ValueError as exc:
+        raise ValueError(f"law {spec.text or spec.name!r}: {exc}") from None
+
+
+def apollo_from_spec(spec, context) -> GuidanceLaw:
+    """``apollo[:kr=..,tgo_margin=..,lead=..,tgo=..,rotation=..]`` (k_r = 12 by default)."""
+    return _augmented(spec, K_R_APOLLO)
+
+
+def zem_zev_from_spec(spec, context) -> GuidanceLaw:
+    """``zem-zev[:...]``: the augmented Apollo law with k_r = 6 by default (same options)."""
+    return _augmented(spec, K_R_ZEM_ZEV)
+
+
+def gravity_turn_from_spec(spec, context) -> GuidanceLaw:
+    """``gravity-turn[:rotation=1|0]``."""
+    spec.require_known_options(("rotation",))
+    _no_argument(spec)
+    return GravityTurnLaw(include_rotation=spec.option("rotation", flag, True),
+                          name=spec.text or spec.name)

@@ -1,0 +1,1 @@
+"""``lunar``: one command line for the project's jobs (:mod:`lunar.cli`)."""

@@ -1,0 +1,7 @@
+"""``python -m lunar``: :func:`lunar.cli.main`."""
+
+import sys
+
+from lunar.cli import main
+
+sys.exit(main())

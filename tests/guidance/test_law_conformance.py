@@ -1,0 +1,165 @@
+"""Every registered law meets the contract (the twin of the env registry's test).
+
+For each law name of the registry, on the env families it flies: its commands are valid actions
+of the env's space (shape, dtype, finite, inside the bounds), a case's command does not depend
+on the batch it flies in nor on the order of the cases, a row that starts a new episode
+(``episode_start``) is commanded as at its first decision whatever the law remembers, and an
+ordinary law is handed the navigation solution, never the truth.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from guidance.flight import decide, navigation
+from guidance.law import FlightComputer, Navigation, PrivilegedLaw
+from guidance.registry import LawContext, build_law, law_names
+from optimizers.optimum import optimum_family
+
+PLANAR = ("LunarSoftLanding-v0", {"dt_s": 2.5})
+PINPOINT = ("LunarPinpointLanding-v2", {"dt_s": 2.0, "throttle_channel": True})
+SEEDS = (11, 12, 13)
+DECISIONS = 3
+
+#: law spec -> the envs it is checked on (every registered name appears: the test below
+#: fails when a new law is registered without a conformance entry)
+SPECS = {
+    "apollo": (PLANAR, PINPOINT),
+    "zem-zev": (PLANAR, PINPOINT),
+    "gravity-turn": (PLANAR, PINPOINT),
+    "open-loop": (PLANAR,),
+    "feedback": (PLANAR, PINPOINT),
+    "feedback:thrust_reserve=0.05,estimate_thrust=1": (PINPOINT,),
+    "convex": (PLANAR,),
+    "random": (PLANAR, PINPOINT),
+    "ppo:RUN": (PLANAR,),
+    "sac:RUN": (PLANAR,),
+    "td3:RUN": (PLANAR,),
+    "bc:RUN": (PLANAR,),
+    "dagger:RUN": (PLANAR,),
+}
+
+
+def test_every_registered_law_has_a_conformance_entry():
+    names = {spec.partition(":")[0] for spec in SPECS}
+    assert names == set(law_names()), "a registered law without a conformance entry"
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    """A run directory with an (untrained) PPO model of the planar env."""
+    import gymnasium as gym
+    import yaml
+    from stable_baselines3 import PPO
+
+    import lunar_env  # noqa: F401
+
+    d = tmp_path_factory.mktemp("run")
+    env = gym.make(PLANAR[0], **PLANAR[1])
+    PPO("MlpPolicy", env, n_steps=64, batch_size=64, seed=0, device="cpu").save(d / "model.zip")
+    (d / "args.yml").write_text(yaml.safe_dump({"algo": "ppo", "env": PLANAR[0]}))
+    (d / "config.yml").write_text(yaml.safe_dump({"env_kwargs": PLANAR[1]}))
+    return d
+
+
+def _cases():
+    return [(spec, env) for spec, envs in SPECS.items() for env in envs]
+
+
+def _venv(env_id, kwargs, seeds, uncertainty=None):
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+
+    kw = dict(kwargs) if uncertainty is None else {**kwargs, "uncertainty": uncertainty}
+    v = gym.make_vec(env_id, num_envs=len(seeds), vectorization_mode="vector_entry_point", **kw)
+    obs, _ = v.reset(seed=list(seeds))
+    return v, obs
+
+
+def _law(spec, env_id, kwargs, run_dir, seeds):
+    spec = spec.replace("RUN", str(run_dir))
+    v, _ = _venv(env_id, kwargs, SEEDS)
+    scenario = v.unwrapped.scenario
+    states = v.unwrapped.navigation_state_nd
+    v.close()
+
+    def nominal_optimum():
+        return optimum_family(scenario).per_case_optimum(scenario, states, progress=False)
+
+    return build_law(spec, LawContext(env_id=env_id, env_kwargs=dict(kwargs),
+                                      scenario=scenario, nominal_optimum=nominal_optimum))
+
+
+def _fly(law, env_id, kwargs, case_ids, decisions=DECISIONS, restart_row=None,
+         uncertainty=None, spy=None):
+    """The actions (decisions, N, n_act) of ``law`` on cases ``case_ids`` (seeds of SEEDS);
+    ``restart_row``: after the decisions, that row is put back at its start and flagged as
+    starting an episode, and one more decision is taken (returned last)."""
+    seeds = [SEEDS[c] for c in case_ids]
+    v, obs = _venv(env_id, kwargs, seeds, uncertainty)
+    core = v.unwrapped
+    computer = FlightComputer.of(core, env_id)
+    law.reset(computer, np.asarray(case_ids))
+    n = len(seeds)
+    start0, t0 = core.state_nd, core.t_s.copy()
+    out = []
+    start = np.ones(n, dtype=bool)
+    for _ in range(decisions):
+        nav, truth = navigation(core, computer, obs, np.ones(n, bool), start,
+                                isinstance(law, PrivilegedLaw))
+        if spy is not None:
+            spy(nav, core)
+        out.append(decide(law, nav, truth))
+        obs, _, term, trunc, _ = v.step(out[-1])
+        assert not (term.any() or trunc.any()), "a case ended within the conformance window"
+        start = np.zeros(n, dtype=bool)
+    if restart_row is not None:
+        core.set_states([restart_row], start0[[restart_row]], t0[[restart_row]])
+        obs = core.observations()
+        start[restart_row] = True
+        nav, truth = navigation(core, computer, obs, np.ones(n, bool), start,
+                                isinstance(law, PrivilegedLaw))
+        out.append(decide(law, nav, truth))
+    v.close()
+    return np.stack(out)
+
+
+@pytest.mark.parametrize("spec, env", _cases(), ids=lambda x: x if isinstance(x, str)
+                         else x[0])
+def test_law_conformance(spec, env, run_dir):
+    env_id, kwargs = env
+    law = _law(spec, env_id, kwargs, run_dir, SEEDS)
+    a = _fly(law, env_id, kwargs, [0, 1, 2], restart_row=0)
+    # valid actions of the env's space
+    import gymnasium as gym
+
+    space = gym.make(env_id, **kwargs).action_space
+    assert a.dtype == np.float32 and a.shape == (DECISIONS + 1, 3, *space.shape)
+    assert np.all(np.isfinite(a)) and np.all((a >= space.low) & (a <= space.high))
+    # a restarted row is commanded as at its first decision
+    np.testing.assert_array_equal(a[-1, 0], a[0, 0])
+    # batch size and case order do not change a row (a learned policy's to float32 rounding:
+    # torch's matrix products round differently with the batch size)
+    other = _fly(_law(spec, env_id, kwargs, run_dir, SEEDS), env_id, kwargs, [2, 0])
+    atol = 1e-6 if spec.endswith(":RUN") else 0.0
+    np.testing.assert_allclose(other[:, 0], a[:DECISIONS, 2], rtol=0, atol=atol)
+    np.testing.assert_allclose(other[:, 1], a[:DECISIONS, 0], rtol=0, atol=atol)
+
+
+@pytest.mark.parametrize("spec", ["apollo", "feedback", "random"])
+def test_an_ordinary_law_is_handed_the_navigation_solution_never_the_truth(spec, run_dir):
+    env_id, kwargs = PLANAR
+    seen: list[tuple[Navigation, np.ndarray, np.ndarray]] = []
+
+    def spy(nav, core):
+        seen.append((nav, core.navigation_state_nd, core.state_nd))
+
+    law = _law(spec, env_id, kwargs, run_dir, SEEDS)
+    assert not isinstance(law, PrivilegedLaw)
+    _fly(law, env_id, kwargs, [0, 1], uncertainty="standard", spy=spy)
+    for nav, navigated, truth in seen:
+        np.testing.assert_array_equal(nav.state_nd, navigated)
+        assert not np.array_equal(nav.state_nd, truth)
+        assert not hasattr(nav, "truth")
