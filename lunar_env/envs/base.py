@@ -20,7 +20,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .. import uncertainty as unc
+from ..uncertainty import EpisodeErrors, error_stream, resolve_uncertainty
 from .core import LanderBatch
 from .task import LandingTask
 
@@ -191,7 +191,9 @@ class _TaskDescription:
         episode that starts from now on, and the navigation noise of every lander from its next
         decision on (an episode under way keeps the entry, plant and bias errors it drew). For
         a training curriculum over the errors (:class:`agents.rl.curriculum.
-        ErrorScaleCurriculum`); the task is rebuilt, never changed in place (tasks are frozen).
+        ErrorScaleCurriculum`). The env swaps its batch for one under the scaled model
+        (:meth:`~lunar_env.envs.core.LanderBatch.with_uncertainty`, which rebuilds the task);
+        no built task or batch is changed.
 
         Raises
         ------
@@ -206,10 +208,9 @@ class _TaskDescription:
         if not self._batch.uncertain:
             raise ValueError("set_error_scale needs an env with an uncertainty model; make it "
                              "with uncertainty=... (a set name, an UncertaintyModel or a dict)")
-        base = unc.resolve_uncertainty(self._task_kwargs.get("uncertainty"))
-        self._task = self._task_cls(**{**self._task_kwargs, "uncertainty": base.scaled(scale)})
-        self._batch.task = self._task
-        self._batch.uncertainty = self._task.uncertainty
+        base = resolve_uncertainty(self._task_kwargs.get("uncertainty"))
+        self._batch = self._batch.with_uncertainty(base.scaled(scale))
+        self._task = self._batch.task
         self._error_scale = scale
 
     def physical_constants(self) -> dict[str, float]:
@@ -259,11 +260,11 @@ class LanderEnv(_TaskDescription, gym.Env):
         return self._batch.last_navigation[0].copy()
 
     @property
-    def episode_errors(self) -> unc.EpisodeErrors:
+    def episode_errors(self) -> EpisodeErrors:
         """This episode's plant and navigation errors (one row; all zero and unit scales
         without an uncertainty model): the truth, for analysis and omniscient references."""
         b = self._batch
-        return b.errors.take([0]) if b.uncertain else unc.EpisodeErrors.zeros(1)
+        return b.errors.take([0]) if b.uncertain else EpisodeErrors.zeros(1)
 
     @property
     def t_s(self) -> float:
@@ -288,10 +289,10 @@ class LanderEnv(_TaskDescription, gym.Env):
         b = self._batch
         if b.uncertain:
             if seed is not None or self._error_rng is None:
-                self._error_rng = unc.error_stream(seed)
-            e = unc.episode_errors(self._task.uncertainty, self._error_rng,
-                                   (options or {}).get("errors"))
-            y0 = b.true_start(y0, e)[0]
+                self._error_rng = error_stream(seed)
+            e = EpisodeErrors.for_reset(self._task.uncertainty, self._error_rng,
+                                        (options or {}).get("errors"))
+            y0 = e.true_start(self._task, y0)[0]
             b.set_errors(0, e)
         b.set_state(0, y0)
         self._done = False
@@ -407,7 +408,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         self.render_mode = None
         self._batch = LanderBatch(self._task, self.num_envs, parallel)
         self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
-        # each sub-env's error stream (:func:`lunar_env.uncertainty.error_stream` of its seed)
+        # each sub-env's error stream (:func:`~lunar_env.uncertainty.error_stream` of its seed)
         self._error_rngs: list[np.random.Generator | None] = [None] * self.num_envs
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._act_shape = (self.num_envs, *self.single_action_space.shape)
@@ -431,11 +432,11 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         return self._batch.last_navigation.copy()
 
     @property
-    def episode_errors(self) -> unc.EpisodeErrors:
+    def episode_errors(self) -> EpisodeErrors:
         """The current episodes' errors, N rows (see :attr:`LanderEnv.episode_errors`)."""
         b = self._batch
         return b.errors.take(np.arange(self.num_envs)) if b.uncertain \
-            else unc.EpisodeErrors.zeros(self.num_envs)
+            else EpisodeErrors.zeros(self.num_envs)
 
     @property
     def t_s(self) -> np.ndarray:
@@ -488,18 +489,18 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
                 opt[k] = arr[i] if arr is not None and arr.ndim == 2 else v
         return self._task.initial_state(self._rngs[i], opt)
 
-    def _draw_errors(self, i: int, options: dict | None = None) -> unc.EpisodeErrors:
+    def _draw_errors(self, i: int, options: dict | None = None) -> EpisodeErrors:
         if self._error_rngs[i] is None:
-            self._error_rngs[i] = unc.error_stream(None)
-        return unc.episode_errors(self._task.uncertainty, self._error_rngs[i],
-                                  (options or {}).get("errors"), row=i)
+            self._error_rngs[i] = error_stream(None)
+        return EpisodeErrors.for_reset(self._task.uncertainty, self._error_rngs[i],
+                                       (options or {}).get("errors"), row=i)
 
     def _reset_one(self, i: int, options: dict | None) -> None:
         y0 = self._initial_state(i, options)
         b = self._batch
         if b.uncertain:
             e = self._draw_errors(i, options)
-            y0 = b.true_start(y0, e)[0]
+            y0 = e.true_start(self._task, y0)[0]
             b.set_errors(i, e)
         b.set_state(i, y0)
 
@@ -526,7 +527,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         old_err = self._error_rngs
         saved_err = [None if r is None else r.bit_generator.state for r in old_err]
         if seed is not None and b.uncertain:
-            self._error_rngs = [unc.error_stream(s) for s in seeds]
+            self._error_rngs = [error_stream(s) for s in seeds]
         y0 = np.empty_like(b.y)
         errors = []
         try:
@@ -535,7 +536,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
                     y0[i] = self._initial_state(i, options)
                     if b.uncertain:
                         errors.append(self._draw_errors(i, options))
-                        y0[i] = b.true_start(y0[i], errors[-1])[0]
+                        y0[i] = errors[-1].true_start(self._task, y0[i])[0]
                 except ValueError as exc:
                     raise ValueError(f"reset of sub-env {i} (row {i} of the options): {exc}"
                                      ) from None

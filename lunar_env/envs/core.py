@@ -17,11 +17,13 @@ An env step (:meth:`LanderBatch.step`):
    and the per-lander quantities every ``info`` reports (:meth:`LanderBatch.info_arrays`).
 
 Under a task's uncertainty model (:mod:`lunar_env.uncertainty`; none by default) the batch also
-holds each lander's episode errors: its plant (thrust and Isp scale, in its own row of the
-kernel's parameters; a misalignment bias added to its gimbal angles) and its navigation errors,
-which make the observations encode the *navigated* state (:meth:`LanderBatch.navigation_states`)
-while the integration, the reward and the verdict use the truth. Without errors none of this
-runs, and the arithmetic is exactly that of an env without the model.
+holds each lander's episode errors (:class:`~lunar_env.uncertainty.EpisodeErrors`, which apply
+themselves): its plant (thrust and Isp scale, in its own row of the kernel's parameters; a
+misalignment bias added to its gimbal angles) and its navigation errors, which make the
+observations encode the *navigated* state (:meth:`LanderBatch.navigation_states`) while the
+integration, the reward and the verdict use the truth. Without errors none of this runs, and
+the arithmetic is exactly that of an env without the model. A batch's task and model are fixed
+when it is built: :meth:`LanderBatch.with_uncertainty` returns a new batch under another model.
 
 This is the only place where any of this is computed: the single env is a batch of one, and it,
 the native vector env and ``step_landers`` only present the same arrays in their own formats.
@@ -39,7 +41,7 @@ import numba
 import numpy as np
 
 from .. import integrators as integ
-from .. import uncertainty as unc
+from ..uncertainty import EpisodeErrors, UncertaintyModel
 
 __all__ = ["LanderBatch", "landing_penalty", "SPEED_SCALE_M_S", "MISS_SCALE_M",
            "INFO_KEYS"]
@@ -114,16 +116,6 @@ def _fuel_used_and_time(m_start, y, t_nd, mass_ref_kg, time_ref_s, fuel, t_s
         t_s[i] = t_nd[i] * time_ref_s
 
 
-@numba.njit(cache=True)
-def _misaligned(controls, bias, n_angles, out):  # pragma: no cover  (compiled)
-    """``controls`` (k, nu) with the gimbal-angle biases ``bias`` (k, >= n_angles) (rad) added to
-    their first ``n_angles`` channels, into ``out`` (allocated by the caller): one compiled
-    loop instead of a copy, a slice and an in-place add per step."""
-    for i in range(controls.shape[0]):
-        for j in range(controls.shape[1]):
-            out[i, j] = controls[i, j] + bias[i, j] if j < n_angles else controls[i, j]
-
-
 class LanderBatch:
     """State and step physics of ``n`` landers of one task.
 
@@ -136,10 +128,17 @@ class LanderBatch:
         Batch size (1 for the single env).
     parallel : bool or None
         Use numba's parallel kernel (None: from :data:`PARALLEL_MIN_BATCH` landers).
+    carries_errors : bool or None
+        The landers carry episode errors (None: unless the task's uncertainty model is null,
+        see :attr:`uncertain`).
+
+    The task (and so the uncertainty model) is fixed for the batch's life: read-only
+    :attr:`task` and :attr:`uncertainty`; :meth:`with_uncertainty` returns a new batch.
     """
 
-    def __init__(self, task, n: int, parallel: bool | None = None) -> None:
-        self.task = task
+    def __init__(self, task, n: int, parallel: bool | None = None,
+                 carries_errors: bool | None = None) -> None:
+        self._task = task
         self.n = int(n)
         nx = task.model.n_state
         nu = task.model.n_control
@@ -176,15 +175,54 @@ class LanderBatch:
             and numba.config.NUMBA_NUM_THREADS > 1
         # the kernel's parameters, one row per lander (a plant error changes a lander's row)
         self._p = np.array(integ.params_rows(task.params_array, self.n))
-        self.uncertainty = task.uncertainty
         #: the landers carry episode errors (False: the model is null, nothing below runs)
-        self.uncertain = not task.uncertainty.is_null
-        self.errors = unc.EpisodeErrors.zeros(self.n) if self.uncertain else None
+        self.uncertain = (not task.uncertainty.is_null if carries_errors is None
+                          else bool(carries_errors))
+        self.errors = EpisodeErrors.zeros(self.n) if self.uncertain else None
         self._mass_belief = np.zeros(self.n)  # flight computer's mass minus the truth (kg)
         #: decisions taken in each lander's episode (the navigation noise's counter)
         self.decision = np.zeros(self.n, dtype=np.int64)
         self._n_angles = nu - 1  # every control channel but the last (throttle) is an angle
         self._nav: np.ndarray | None = None
+
+    @property
+    def task(self):
+        """The task (:class:`~lunar_env.envs.task.LandingTask`) the batch flies (read-only)."""
+        return self._task
+
+    @property
+    def uncertainty(self) -> UncertaintyModel:
+        """The task's uncertainty model (read-only)."""
+        return self._task.uncertainty
+
+    def with_uncertainty(self, model: UncertaintyModel) -> LanderBatch:
+        """A new batch of the same landers under ``model``: the task rebuilt with it
+        (:meth:`~lunar_env.envs.task.LandingTask.with_uncertainty`), and copies of every
+        lander's state, clock, initial mass, decision counter, episode errors (with the plant
+        and the flight computer's mass belief they set) and last navigated state. Episodes
+        under way keep the errors they drew; the new model acts on the episodes that start in
+        the new batch and on the navigation noise of every decision it steps. This batch is
+        left as it was.
+
+        Raises
+        ------
+        ValueError
+            If this batch carries no episode errors (its task's model is null).
+        """
+        if not self.uncertain:
+            raise ValueError("with_uncertainty needs a batch with episode errors (a task with "
+                             "an uncertainty model); make the env with uncertainty=...")
+        new = LanderBatch(self._task.with_uncertainty(model), self.n, self._parallel,
+                          carries_errors=True)
+        new.y[:] = self.y
+        new.t_nd[:] = self.t_nd
+        new.m_start_nd[:] = self.m_start_nd
+        new.decision[:] = self.decision
+        new.errors = self.errors.take(slice(None))
+        new._mass_belief[:] = self._mass_belief
+        new._p[:] = self._p
+        new._nav = None if self._nav is None else self._nav.copy()
+        return new
 
     # -- state ----------------------------------------------------------------------------------
     def set_state(self, i, y_nd: np.ndarray) -> None:
@@ -196,33 +234,12 @@ class LanderBatch:
             self.decision[i] = 0
             self._nav = None
 
-    def true_start(self, y_planned_nd: np.ndarray, errors: unc.EpisodeErrors) -> np.ndarray:
-        """The true initial states (k, n_state) of episodes planned to start at
-        ``y_planned_nd`` (k, n_state) with the k-row ``errors``: the entry errors and the wet-mass
-        error added (:meth:`~lunar_env.envs.task.LandingTask.offset_states`).
-
-        Raises
-        ------
-        ValueError
-            If an error puts a start at or below the terminal radius or the dry mass.
-        """
-        task = self.task
-        y = task.offset_states(np.atleast_2d(y_planned_nd), errors.entry_position_m,
-                               errors.entry_velocity_m_s, errors.mass_error_kg)
-        if not (np.all(task.radius_nd(y) > task.r_stop_nd) and np.all(y[:, -1] > task.dry_mass_nd)):
-            raise ValueError("the entry or mass error of the uncertainty model puts the start at "
-                             "or below the terminal radius or the dry mass; reduce its σ")
-        return y
-
-    def set_errors(self, i: int, errors: unc.EpisodeErrors) -> None:
-        """Give lander ``i`` the one-row episode ``errors`` (its plant and navigation)."""
+    def set_errors(self, i: int, errors: EpisodeErrors) -> None:
+        """Give lander ``i`` the one-row episode ``errors`` (its plant and navigation; its start
+        is the caller's, see :meth:`~lunar_env.uncertainty.EpisodeErrors.true_start`)."""
         self.errors.set_row(i, errors)
         self._mass_belief[i] = -errors.mass_error_kg[0]
-        p = np.array(self.task.params_array)
-        # parameters 0 and 1 of both models: maximum thrust and exhaust velocity (Isp·g0)
-        p[0] *= errors.thrust_scale[0]
-        p[1] *= errors.isp_scale[0]
-        self._p[i] = p
+        self._p[i] = errors.plant_params(self._task.params).as_array()
 
     def navigation_states(self) -> np.ndarray:
         """The navigated states (n, n_state) of every lander now: the truth with each lander's
@@ -233,7 +250,7 @@ class LanderBatch:
         an uncertainty model."""
         if not self.uncertain:
             return self.y
-        return self.task.navigation_states(self.y, self.errors, self.decision,
+        return self._task.navigation_states(self.y, self.errors, self.decision,
                                            self._mass_belief)
 
     def observations(self, t_s: np.ndarray | None = None) -> np.ndarray:
@@ -241,11 +258,11 @@ class LanderBatch:
         :meth:`navigation_states`; remembered for :attr:`last_navigation`); ``t_s`` (n,) their
         episode times (s) when already at hand (``info_arrays(...)["time_s"]``), saving a
         multiply."""
-        t = self.t_nd * self.task.time_ref_s if t_s is None else t_s
+        t = self.t_nd * self._task.time_ref_s if t_s is None else t_s
         if not self.uncertain:
-            return self.task.observation(self.y, t)
+            return self._task.observation(self.y, t)
         self._nav = self.navigation_states()
-        return self.task.observation(self._nav, t)
+        return self._task.observation(self._nav, t)
 
     @property
     def last_navigation(self) -> np.ndarray:
@@ -266,7 +283,7 @@ class LanderBatch:
         ``miss``: NaN where undefined, as :meth:`step` returns them). ``scratch``: as in
         :meth:`step` (fuel and time in the batch's buffers, valid until the next call).
         """
-        task = self.task
+        task = self._task
         if scratch:
             fuel, t_s = self._fuel_used, self._time_s
         else:
@@ -280,7 +297,7 @@ class LanderBatch:
     # -- physics --------------------------------------------------------------------------------
     def _powered(self, idx, y0: np.ndarray, t0: np.ndarray, controls: np.ndarray,
                  p: np.ndarray):
-        task = self.task
+        task = self._task
         varies = task.gate_range_m is not None
         if idx is None:
             breaks, coefs, h, rs = self._breaks, self._coefs, self._h, self._r_stop
@@ -304,7 +321,7 @@ class LanderBatch:
                 p: np.ndarray):
         """Powered flight of one lander from a speed minimum that is not a cut-off to the step's
         end ``t1``, in equal RK4 steps no longer than the regular substep."""
-        task = self.task
+        task = self._task
         n = max(1, int(math.ceil((t1 - t0) / task.h_nd - 1e-9)))
         ctrl = integ.PiecewisePolynomial.constant(controls[None], np.array([t0]), np.array([t1]))
         p = integ.integrate(
@@ -315,7 +332,7 @@ class LanderBatch:
 
     def _fall(self, y0: np.ndarray, t0: np.ndarray, p: np.ndarray):
         """Engine off until the landing radius (or ``max_fall_s``): the public integrator."""
-        task = self.task
+        task = self._task
         k = len(y0)
         ctrl = integ.PiecewisePolynomial.constant(
             np.zeros((k, task.model.n_control)), t0, t0 + task.n_fall * task.h_nd)
@@ -339,7 +356,7 @@ class LanderBatch:
         the arrays may be the batch's own read-only buffers, valid until the next call; for
         one lander, new arrays would cost as much as the step's bookkeeping.
         """
-        task = self.task
+        task = self._task
         if idx is None:
             y0, t0 = self.y, self.t_nd
             p = self._p
@@ -348,12 +365,7 @@ class LanderBatch:
             p = self._p[idx] if self.uncertain else self._p[:len(idx)]
         if self.uncertain:
             # the engine points where commanded plus its misalignment (gimbal-angle biases)
-            bias = self.errors.misalignment_rad if idx is None else \
-                self.errors.misalignment_rad[idx]
-            controls = np.ascontiguousarray(controls, dtype=np.float64)
-            misaligned = np.empty(controls.shape)
-            _misaligned(controls, bias, self._n_angles, misaligned)
-            controls = misaligned
+            controls = self.errors.misaligned(controls, self._n_angles, idx)
             self._nav = None
             if idx is None:
                 self.decision += 1

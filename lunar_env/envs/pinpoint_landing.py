@@ -15,9 +15,9 @@ from numba.extending import register_jitable
 
 from .. import dynamics as dyn
 from .. import integrators as integ
-from .. import uncertainty as unc
 from ..scenarios import PinpointScenario, get_scenario
-from ..uncertainty import UncertaintyModel
+from ..uncertainty import EpisodeErrors, UncertaintyModel
+from ..uncertainty.navigation import navigation_error, standard_normals
 from ..validation import require_finite_positive
 from .base import LanderEnv, LanderVectorEnv
 from .task import LandingTask, StepSettings, box, float_array
@@ -71,7 +71,7 @@ def _controls_kernel(a, lo_a, span_a, lo_b, span_b, throttle_channel, u):  # pra
             u[i, 2] = 1.0
 
 
-# inlined (numba IR) into its compiled callers: see lunar_env.uncertainty._shrink
+# inlined (numba IR) into its compiled callers: see lunar_env.uncertainty.navigation._shrink
 @register_jitable(inline="always")
 def _altitude_row(y, i, radius_nd, length_ref_m):
     """Altitude (m) above the sphere of radius ``radius_nd`` of state ``y[i]`` (the one formula
@@ -90,7 +90,7 @@ def _altitude_kernel(y, radius_nd, length_ref_m, out):  # pragma: no cover  (com
 
 # Inlined (numba IR) into its compiled callers, which run with NumPy's error model: no divisor
 # here is zero (positive units), and without the zero test the loop has no branch (see
-# lunar_env.uncertainty._FAST and _shrink); the results are the same.
+# lunar_env.uncertainty.navigation); the results are the same.
 @register_jitable(inline="always")
 def _offset_row(y, i, dp_up, dp_down, dp_cross, dv_up, dv_down, dv_cross, dmass, n_hat, L, V,
                 M, out):
@@ -120,9 +120,9 @@ def _navigation_kernel(y, keys, counters, bias_p, bias_v, c, dmass, radius_nd, n
     per lander the true altitude, its navigation errors and the offset state, in one pass (no
     (B, 3) error arrays, no second pass over the states)."""
     z = np.empty((6, y.shape[0]))  # position and velocity noise along the three axes
-    unc._standard_normals(keys, counters, z)
+    standard_normals(keys, counters, z)
     for i in range(y.shape[0]):
-        e = unc._navigation_error_row(z, i, _altitude_row(y, i, radius_nd, L), bias_p, bias_v,
+        e = navigation_error(z, i, _altitude_row(y, i, radius_nd, L), bias_p, bias_v,
                                       c, 3)
         _offset_row(y, i, e[0], e[1], e[2], e[3], e[4], e[5], dmass[i], n_hat, L, V, M, out)
 
@@ -312,7 +312,7 @@ class PinpointTask(LandingTask):
                        self.length_ref_m, self.velocity_ref_m_s, self.mass_ref_kg, out)
         return out
 
-    def navigation_states(self, y: np.ndarray, errors: unc.EpisodeErrors,
+    def navigation_states(self, y: np.ndarray, errors: EpisodeErrors,
                           counters: np.ndarray, mass_belief_kg: np.ndarray) -> np.ndarray:
         """As :meth:`LandingTask.navigation_states` (same arithmetic, bit for bit), in one
         compiled call."""

@@ -15,9 +15,9 @@ import numpy as np
 from numba.extending import register_jitable
 
 from .. import integrators as integ
-from .. import uncertainty as unc
 from ..scenarios import PlanarScenario, get_scenario
-from ..uncertainty import UncertaintyModel
+from ..uncertainty import EpisodeErrors, UncertaintyModel
+from ..uncertainty.navigation import navigation_error, standard_normals
 from .base import LanderEnv, LanderVectorEnv
 from .task import LandingTask, StepSettings, box, float_array
 
@@ -59,7 +59,7 @@ def _observation_kernel(y, t_s, c, lo, hi, out):  # pragma: no cover  (compiled)
             out[i, j] = min(max(raw[j], lo[j]), hi[j])
 
 
-# inlined (numba IR) into its compiled callers: see lunar_env.uncertainty._shrink
+# inlined (numba IR) into its compiled callers: see lunar_env.uncertainty.navigation._shrink
 @register_jitable(inline="always")
 def _altitude_row(y, i, r_stop_nd, length_ref_m):
     """Altitude (m) above the surface radius of state ``y[i]`` (the one formula of
@@ -76,7 +76,7 @@ def _altitude_kernel(y, r_stop_nd, length_ref_m, out):  # pragma: no cover  (com
 
 # Inlined (numba IR) into its compiled callers, which run with NumPy's error model: no divisor
 # here is zero (positive units and radii), and without the zero test the loop has no branch (see
-# lunar_env.uncertainty._FAST and _shrink); the results are the same.
+# lunar_env.uncertainty.navigation); the results are the same.
 @register_jitable(inline="always")
 def _offset_row(y, i, dp_up, dp_down, dv_up, dv_down, dmass, L, V, M, out):
     """:meth:`PlanarTask.offset_states` of lander i (errors in m, m/s, kg) into ``out[i]``: the
@@ -106,9 +106,9 @@ def _navigation_kernel(y, keys, counters, bias_p, bias_v, c, dmass, r_stop_nd, L
     per lander the true altitude, its navigation errors and the offset state, in one pass (no
     (B, 3) error arrays, no second pass over the states)."""
     z = np.empty((4, y.shape[0]))  # planar: position and velocity noise, up and downrange
-    unc._standard_normals(keys, counters, z)
+    standard_normals(keys, counters, z)
     for i in range(y.shape[0]):
-        e = unc._navigation_error_row(z, i, _altitude_row(y, i, r_stop_nd, L), bias_p, bias_v,
+        e = navigation_error(z, i, _altitude_row(y, i, r_stop_nd, L), bias_p, bias_v,
                                       c, 2)
         _offset_row(y, i, e[0], e[1], e[3], e[4], dmass[i], L, V, M, out)
 
@@ -248,7 +248,7 @@ class PlanarTask(LandingTask):
                        self.velocity_ref_m_s, self.mass_ref_kg, out)
         return out
 
-    def navigation_states(self, y: np.ndarray, errors: unc.EpisodeErrors,
+    def navigation_states(self, y: np.ndarray, errors: EpisodeErrors,
                           counters: np.ndarray, mass_belief_kg: np.ndarray) -> np.ndarray:
         """As :meth:`LandingTask.navigation_states` (same arithmetic, bit for bit), in one
         compiled call."""

@@ -13,21 +13,23 @@ to users is SI, with the unit in the name.
 
 A task is immutable once constructed (its settings are read by every step; changing one under
 a running env would silently change the episode): setting or deleting an attribute afterwards
-raises ``AttributeError``. Build a new env for other settings.
+raises ``AttributeError``. Build a new env for other settings; for another uncertainty model,
+:meth:`LandingTask.with_uncertainty` builds a new task from the same arguments.
 """
 
 from __future__ import annotations
 
 import abc
 import dataclasses
+import inspect
 import math
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
 
-from .. import uncertainty as unc
-from ..uncertainty import UncertaintyModel, resolve_uncertainty
+from ..uncertainty import EpisodeErrors, UncertaintyModel, resolve_uncertainty
+from ..uncertainty.navigation import navigation_constants
 from ..validation import require_bool, require_finite_positive, require_integer
 
 __all__ = ["LandingTask", "StepSettings", "fall_steps", "float_array", "box"]
@@ -123,10 +125,12 @@ def fall_steps(max_fall_s: float, h_s: float) -> int:
 
 
 class _FrozenAfterInit(abc.ABCMeta):
-    """Freezes an instance once its whole ``__init__`` (subclass included) has run."""
+    """Freezes an instance once its whole ``__init__`` (subclass included) has run, and keeps
+    the arguments it was built with (for :meth:`LandingTask.with_uncertainty`)."""
 
     def __call__(cls, *args: Any, **kwargs: Any) -> Any:
         obj = super().__call__(*args, **kwargs)
+        object.__setattr__(obj, "_init_arguments", (args, dict(kwargs)))
         object.__setattr__(obj, "_frozen", True)
         return obj
 
@@ -194,7 +198,7 @@ class LandingTask(metaclass=_FrozenAfterInit):
                  uncertainty: UncertaintyModel | str | dict | None = None) -> None:
         self.uncertainty = resolve_uncertainty(uncertainty)
         # the navigation model packed once for the compiled navigation kernels
-        self._nav_consts = unc._navigation_constants(self.uncertainty)
+        self._nav_consts = navigation_constants(self.uncertainty)
         self.scenario = scenario
         self.settings = settings
         self.scaling = s = scenario.scaling()
@@ -219,6 +223,26 @@ class LandingTask(metaclass=_FrozenAfterInit):
 
     def __delattr__(self, name: str) -> None:
         raise AttributeError(f"cannot delete {type(self).__name__}.{name}: a task is frozen")
+
+    def with_uncertainty(self, uncertainty: UncertaintyModel | str | dict | None
+                         ) -> LandingTask:
+        """A new task of this class built with this task's arguments but ``uncertainty``
+        (anything the ``uncertainty`` argument takes); this task is left as it was.
+
+        Raises
+        ------
+        TypeError
+            If the subclass's constructor has no ``uncertainty`` argument.
+        """
+        cls = type(self)
+        signature = inspect.signature(cls.__init__)  # (self, ...): the metaclass hides cls's
+        if "uncertainty" not in signature.parameters:
+            raise TypeError(f"{cls.__name__}() takes no 'uncertainty' argument; a landing task's "
+                            "constructor must take one to be rebuilt under another model")
+        args, kwargs = self._init_arguments
+        bound = signature.bind(self, *args, **kwargs)
+        bound.arguments["uncertainty"] = uncertainty
+        return cls(*bound.args[1:], **bound.kwargs)
 
     # -- settings (read-only views of ``settings``) ------------------------------------------------
     @property
@@ -297,24 +321,26 @@ class LandingTask(metaclass=_FrozenAfterInit):
         m/s; a planar task ignores crossrange) and mass errors ``dmass_kg`` (B,) (kg); a new
         array. Downrange is the direction of the scenario's initial motion."""
 
-    def navigation_states(self, y: np.ndarray, errors: unc.EpisodeErrors,
+    def navigation_states(self, y: np.ndarray, errors: EpisodeErrors,
                           counters: np.ndarray, mass_belief_kg: np.ndarray) -> np.ndarray:
         """The navigated states (B, n_state) of true states ``y`` (B, n_state) under
         ``uncertainty``: each lander's navigation errors
-        (:func:`~lunar_env.uncertainty.navigation_errors` of its episode ``errors`` (B rows)
-        at decision indices ``counters`` (B,) and its true :meth:`altitude_m`) and its flight
-        computer's mass error ``mass_belief_kg`` (B,) (kg) applied by :meth:`offset_states`;
-        a new array.
+        (:meth:`~lunar_env.uncertainty.EpisodeErrors.navigation_errors` of its episode
+        ``errors`` (B rows) at decision indices ``counters`` (B,) and its true
+        :meth:`altitude_m`) and its flight computer's mass error ``mass_belief_kg`` (B,) (kg)
+        applied by :meth:`offset_states`; a new array.
 
-        This default composes those public functions; a task may override it with a fused
-        compiled kernel that must give the same arrays bit for bit (the planar and pinpoint
-        tasks do: the env steps call this once per decision).
+        This default composes those public methods; a task may override it with a fused
+        compiled kernel (calling :func:`~lunar_env.uncertainty.navigation.standard_normals`
+        and :func:`~lunar_env.uncertainty.navigation.navigation_error` with
+        :meth:`_navigation_inputs`) that must give the same arrays bit for bit (the planar and
+        pinpoint tasks do: the env steps call this once per decision).
         """
-        dpos, dvel = unc.navigation_errors(self.uncertainty, errors, counters,
-                                           self.altitude_m(y), self.n_axes)
+        dpos, dvel = errors.navigation_errors(self.uncertainty, counters, self.altitude_m(y),
+                                              self.n_axes)
         return self.offset_states(y, dpos, dvel, mass_belief_kg)
 
-    def _navigation_inputs(self, y: np.ndarray, errors: unc.EpisodeErrors,
+    def _navigation_inputs(self, y: np.ndarray, errors: EpisodeErrors,
                            counters: np.ndarray, mass_belief_kg: np.ndarray) -> tuple:
         """The leading arguments of a task's fused navigation kernel, in its order: (states,
         noise keys, decision indices, position and velocity biases, the packed navigation

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import gymnasium as gym
 import numpy as np
@@ -13,7 +14,7 @@ import pytest
 import lunar_env  # noqa: F401
 from lunar_env import uncertainty as unc
 from lunar_env.integrators import integrate_reference
-from lunar_env.uncertainty import UncertaintyModel, get_uncertainty
+from lunar_env.uncertainty import SIGMA_LIMITS, EpisodeErrors, UncertaintyModel, get_uncertainty
 
 IDS = ("LunarSoftLanding-v0", "LunarPinpointLanding-v2")
 
@@ -137,8 +138,8 @@ def test_case_k_errors_do_not_depend_on_the_batch(env_id):
 
 def test_every_scale_sees_the_same_standard_normals():
     std = get_uncertainty("standard")
-    a = unc.draw_errors(std, unc.error_stream(5))
-    b = unc.draw_errors(std.scaled(2.0), unc.error_stream(5))
+    a = EpisodeErrors.draw(std, unc.error_stream(5))
+    b = EpisodeErrors.draw(std.scaled(2.0), unc.error_stream(5))
     np.testing.assert_allclose(b.thrust_scale - 1, 2 * (a.thrust_scale - 1), rtol=1e-12)
     np.testing.assert_allclose(b.nav_position_bias_m, 2 * a.nav_position_bias_m, rtol=1e-12)
     np.testing.assert_array_equal(a.noise_key, b.noise_key)
@@ -150,7 +151,7 @@ def test_terminal_sensors_cut_the_errors_at_lock_then_in_proportion_to_the_altit
     # fraction there, proportional to the altitude below, and never under its floor.
     m = get_uncertainty("standard")
     h = np.array([15000.0, 3000.0 + 1e-9, 3000.0, 2000.0, 1500.0, 600.0, 10.0, 0.0, -3.0])
-    wp, wv = unc.radar_weight(m, h)
+    wp, wv = m.radar_weight(h)
     lock, hr = m.radar_lock_fraction, m.radar_altitude_m
     expect_p = [1.0, 1.0, lock, lock * 2000 / hr, lock * 1500 / hr, lock * 600 / hr] + [
         m.near_ground_position_fraction] * 3
@@ -159,11 +160,11 @@ def test_terminal_sensors_cut_the_errors_at_lock_then_in_proportion_to_the_altit
     # ~3 m of altitude error (1σ bias) at the 2 km gate, 1 m at the surface
     assert 3.0 < m.nav_position_bias_m[0] * wp[3] < 3.5
     # the compiled kernel applies the same weights
-    errors = unc.draw_errors(m, unc.error_stream(5))
-    many = unc.EpisodeErrors(**{f.name: np.repeat(getattr(errors, f.name), len(h), axis=0)
-                                for f in dataclasses.fields(errors)})
+    errors = EpisodeErrors.draw(m, unc.error_stream(5))
+    many = EpisodeErrors(**{f.name: np.repeat(getattr(errors, f.name), len(h), axis=0)
+                            for f in dataclasses.fields(errors)})
     counters = np.zeros(len(h), dtype=np.int64)
-    dpos, dvel = unc.navigation_errors(m, many, counters, h)
+    dpos, dvel = many.navigation_errors(m, counters, h)
     z = unc.navigation_noise(many.noise_key, counters)
     np.testing.assert_allclose(
         dpos[:, 0], wp * (many.nav_position_bias_m[:, 0] + z[:, 0] * m.nav_position_noise_m[0]),
@@ -181,6 +182,38 @@ def test_navigation_noise_is_a_pure_function_of_key_and_counter():
     assert np.abs(np.corrcoef(big.T) - np.eye(6)).max() < 0.03
 
 
+_MASK64 = (1 << 64) - 1
+
+
+def _splitmix64(x: int) -> int:
+    """splitmix64's finaliser in Python integers (the reference of the compiled hash)."""
+    z = (x + 0x9E3779B97F4A7C15) & _MASK64
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
+    return z ^ (z >> 31)
+
+
+def _acklam_quantile(p: float) -> float:
+    """Acklam's normal quantile in Python floats, term for term as the compiled one."""
+    a = (-3.969683028665376e+01, 2.209460984245205e+02, -2.759285104469687e+02,
+         1.383577518672690e+02, -3.066479806614716e+01, 2.506628277459239e+00)
+    b = (-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
+         6.680131188771972e+01, -1.328068155288572e+01)
+    c = (-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
+         -2.549732539343734e+00, 4.374664141464968e+00, 2.938163982698783e+00)
+    d = (7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
+         3.754408661907416e+00)
+    if 0.02425 <= p <= 1.0 - 0.02425:
+        q = p - 0.5
+        r = q * q
+        return (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q \
+            / (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1.0)
+    q = math.sqrt(-2.0 * math.log(p if p < 0.5 else 1.0 - p))
+    x = (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) \
+        / ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1.0)
+    return x if p < 0.5 else -x
+
+
 def test_batched_noise_is_the_per_lander_definition_bit_for_bit():
     # The compiled noise runs in vectorised passes over the batch; each draw must still be the
     # per-lander definition (hash pairs, Acklam's quantile, truncation), so recorded episodes
@@ -191,12 +224,12 @@ def test_batched_noise_is_the_per_lander_definition_bit_for_bit():
     got = unc.navigation_noise(keys, counters, 5)
     expect = np.empty_like(got)
     for i, (k, c) in enumerate(zip(keys, counters, strict=True)):
-        base = unc._splitmix64(k ^ unc._splitmix64(np.uint64(c)))
+        base = _splitmix64(int(k) ^ _splitmix64(int(c)))
         for j in range(5):
-            h = unc._splitmix64(base + np.uint64(j - j % 2 + 1))
-            half = h >> np.uint64(32) if j % 2 == 0 else h & np.uint64(0xFFFFFFFF)
+            h = _splitmix64((base + j - j % 2 + 1) & _MASK64)
+            half = h >> 32 if j % 2 == 0 else h & 0xFFFFFFFF
             p = (float(half) + 0.5) / 2.0 ** 32
-            expect[i, j] = min(max(unc._normal_quantile(p), -4.5), 4.5)
+            expect[i, j] = min(max(_acklam_quantile(p), -4.5), 4.5)
     np.testing.assert_array_equal(got, expect)
     assert (np.abs(got) > 1.98).any()  # draws from the tails were checked too
 
@@ -241,7 +274,7 @@ def test_observation_is_the_truth_plus_the_drawn_navigation_errors(env_id):
         truth = info["state_nd"]
         np.testing.assert_array_equal(truth, core.state_nd)
         np.testing.assert_array_equal(info["navigation_state_nd"], core.navigation_state_nd)
-        wp, wv = unc.radar_weight(m, task.altitude_m(truth[None]))
+        wp, wv = m.radar_weight(task.altitude_m(truth[None]))
         z = unc.navigation_noise(e.noise_key, np.array([decision]))
         dpos = wp[:, None] * (e.nav_position_bias_m
                               + z[:, 0::2] * np.asarray(m.nav_position_noise_m))
@@ -415,3 +448,158 @@ def test_error_scale_refuses_bad_values_and_an_env_without_errors():
     plain = gym.make("LunarSoftLanding-v0").unwrapped
     with pytest.raises(ValueError, match="uncertainty model"):
         plain.set_error_scale(0.5)
+
+
+# -- σ limits ----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("field", sorted(SIGMA_LIMITS))
+def test_each_sigma_limit_is_refused_at_construction_naming_the_field(field):
+    """A σ at its limit is refused when the model is built (not at the first reset), the
+    message naming the field, the value and the limit; just under the limit is a model."""
+    limit = SIGMA_LIMITS[field]
+    vector = isinstance(getattr(UncertaintyModel(), field), tuple)
+    label = f"{field}[1]" if vector else field
+    at = (0.0, limit, 0.0) if vector else limit
+    with pytest.raises(ValueError, match=rf"{re.escape(label)} = .*< {limit:g}"):
+        UncertaintyModel(**{field: at})
+    with pytest.raises(ValueError, match=re.escape(label)):
+        get_uncertainty("standard").replace(**{field: at})
+    below = math.nextafter(limit, 0.0)
+    UncertaintyModel(**{field: (below,) * 3 if vector else below})
+
+
+def test_a_huge_mass_error_is_refused_when_the_env_is_made():
+    with pytest.raises(ValueError, match=r"mass_kg = 1000000000.0 .*< 1000 kg"):
+        gym.make("LunarSoftLanding-v0", uncertainty={"mass_kg": 1e9})
+    with pytest.raises(ValueError, match="entry_position_m"):
+        get_uncertainty("standard").scaled(1e3)
+
+
+def test_ten_times_stress_is_within_the_limits_but_the_engine_scales():
+    """The limits are generous: 10 × stress is a valid model in every field whose limit is
+    not physical; the engine's scales stop at 0.2 (a positive thrust within 4.5σ)."""
+    big = get_uncertainty("stress").replace(thrust_scale=0.0, isp_scale=0.0).scaled(10.0)
+    assert big.mass_kg == pytest.approx(10 * get_uncertainty("stress").mass_kg)
+    with pytest.raises(ValueError, match="thrust_scale"):
+        get_uncertainty("stress").scaled(10.0)
+
+
+# -- a change of error scale is a new batch ----------------------------------------------------
+
+def _batch_arrays(b) -> dict[str, np.ndarray]:
+    return {"y": b.y.copy(), "t_nd": b.t_nd.copy(), "m_start_nd": b.m_start_nd.copy(),
+            "decision": b.decision.copy(),
+            **{f"errors.{k}": v.copy() for k, v in b.errors.as_dict().items()}}
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_error_scale_swaps_the_batch_and_leaves_the_old_one_untouched(env_id):
+    env = gym.make_vec(env_id, 4, vectorization_mode="vector_entry_point",
+                       uncertainty="standard")
+    core = env.unwrapped
+    env.reset(seed=3)
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        env.step(rng.uniform(-1, 1, env.action_space.shape))
+    old = core._batch
+    old_task, old_model = old.task, old.uncertainty
+    before = _batch_arrays(old)
+    nav_before = old.last_navigation.copy()
+    core.set_error_scale(0.5)
+    new = core._batch
+    assert new is not old and new.task is not old_task and core.task is new.task
+    assert old.task is old_task and old.uncertainty is old_model == get_uncertainty("standard")
+    assert new.uncertainty == get_uncertainty("standard").scaled(0.5)
+    # the landers carry over: states, clocks, decision counters, episode errors
+    for k, v in _batch_arrays(new).items():
+        np.testing.assert_array_equal(v, before[k], err_msg=k)
+    np.testing.assert_array_equal(new.last_navigation, nav_before)
+    env.step(rng.uniform(-1, 1, env.action_space.shape))
+    assert not np.array_equal(new.y, before["y"])
+    for k, v in _batch_arrays(old).items():
+        np.testing.assert_array_equal(v, before[k], err_msg=k)
+    # a batch's task and model cannot be assigned
+    with pytest.raises(AttributeError):
+        old.task = new.task
+    with pytest.raises(AttributeError):
+        old.uncertainty = new.uncertainty
+    env.close()
+
+
+def test_with_uncertainty_flies_on_as_the_old_batch_under_the_same_model():
+    """A batch rebuilt under the same model steps exactly as the original would have."""
+    env_a = gym.make_vec("LunarPinpointLanding-v2", 3, vectorization_mode="vector_entry_point",
+                         uncertainty="stress")
+    env_b = gym.make_vec("LunarPinpointLanding-v2", 3, vectorization_mode="vector_entry_point",
+                         uncertainty="stress")
+    env_a.reset(seed=5)
+    env_b.reset(seed=5)
+    rng = np.random.default_rng(1)
+    actions = rng.uniform(-1, 1, (6, *env_a.action_space.shape))
+    for a in actions[:3]:
+        env_a.step(a)
+        env_b.step(a)
+    core_b = env_b.unwrapped
+    core_b._batch = core_b._batch.with_uncertainty(core_b.task.uncertainty)
+    for a in actions[3:]:
+        oa = env_a.step(a)
+        ob = env_b.step(a)
+        np.testing.assert_array_equal(oa[0], ob[0])
+        np.testing.assert_array_equal(oa[1], ob[1])
+    np.testing.assert_array_equal(env_a.unwrapped.state_nd, core_b.state_nd)
+
+
+def test_with_uncertainty_needs_a_batch_with_errors():
+    from lunar_env.envs.core import LanderBatch
+    from lunar_env.envs.soft_landing import PlanarTask
+
+    with pytest.raises(ValueError, match="uncertainty"):
+        LanderBatch(PlanarTask(), 2).with_uncertainty(get_uncertainty("standard"))
+    task = PlanarTask(dt_s=2.0, uncertainty="standard")
+    other = task.with_uncertainty("stress")
+    assert other.dt_s == 2.0 and other.uncertainty == get_uncertainty("stress")
+    assert task.uncertainty == get_uncertainty("standard")
+
+
+# -- the plant, by parameter name ------------------------------------------------------------
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_plant_scaling_by_name_equals_the_packed_indices(env_id):
+    """``plant_params`` scales ``thrust_nd`` and ``exhaust_velocity_nd`` by name; packed, it is
+    bit for bit the kernel row of the nominal array with entries 0 and 1 scaled, and the
+    row the batch flies."""
+    env = gym.make_vec(env_id, 5, vectorization_mode="vector_entry_point", uncertainty="stress")
+    core = env.unwrapped
+    env.reset(seed=9)
+    task = core.task
+    e = core.episode_errors
+    for i in range(5):
+        by_index = np.array(task.params_array)
+        by_index[0] *= e.thrust_scale[i]
+        by_index[1] *= e.isp_scale[i]
+        by_name = e.plant_params(task.params, i)
+        assert by_name.thrust_nd == task.params.thrust_nd * e.thrust_scale[i]
+        np.testing.assert_array_equal(by_name.as_array(), by_index)
+        np.testing.assert_array_equal(core._batch._p[i], by_index)
+    assert (e.thrust_scale != 1.0).all() and (e.isp_scale != 1.0).all()
+    env.close()
+
+
+def test_the_free_functions_are_the_methods():
+    """The module-level names kept from before the methods give the methods' results."""
+    m = get_uncertainty("standard")
+    a = unc.draw_errors(m, unc.error_stream(7))
+    b = EpisodeErrors.draw(m, unc.error_stream(7))
+    for k, v in a.as_dict().items():
+        np.testing.assert_array_equal(v, getattr(b, k))
+    h = np.array([5000.0, 1000.0, 3.0])
+    np.testing.assert_array_equal(unc.radar_weight(m, h), m.radar_weight(h))
+    many = a.take([0, 0, 0])
+    c = np.array([0, 1, 2])
+    np.testing.assert_array_equal(unc.navigation_errors(m, many, c, h),
+                                  many.navigation_errors(m, c, h))
+    pinned = {"thrust_scale": 0.97}
+    assert unc.errors_from_option(pinned).thrust_scale[0] == 0.97
+    e = unc.episode_errors(m, unc.error_stream(7), pinned)
+    assert e.thrust_scale[0] == EpisodeErrors.for_reset(m, unc.error_stream(7),
+                                                        pinned).thrust_scale[0] == 0.97
