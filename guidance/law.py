@@ -49,7 +49,7 @@ A law in ten lines (flown by ``python -m guidance.campaign`` once registered, se
 
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
+from abc import abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property

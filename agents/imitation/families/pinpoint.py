@@ -384,9 +384,9 @@ def pinpoint_dagger_rollouts(model_path, load_learner, env_id: str,
     :class:`optimizers.optimum.DaggerRequest`) from ``n_episodes`` dispersed starts
     (sub-env i seeded ``seed + i``), every visited state labelled by the Pontryagin feedback
     expert (:class:`guidance.laws.pontryagin_pinpoint.PinpointPontryaginExpert`, the extremal
-    from that state, on the true state: :class:`DaggerRolloutTeacher`), or, given ``teacher_law`` (a law
-    spec), by that law on the navigation solution the student sees
-    (:class:`LawRolloutTeacher`; e.g. the window law of issue 31).
+    from that state, on the true state: :class:`DaggerRolloutTeacher`), or, given
+    ``teacher_law`` (a law spec), by that law on the navigation solution the student sees
+    (:class:`LawRolloutTeacher`; e.g. the terminal-window law).
 
     Mixing (Ross et al. 2011's β): with probability ``beta`` an episode is flown by the expert
     up to a switch time drawn uniformly in [0, :data:`SWITCH_MAX_S`] s and by the policy after

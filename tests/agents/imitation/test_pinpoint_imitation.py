@@ -164,7 +164,8 @@ def test_dataset_cli_runs_as_a_module(tmp_path):
     _shard_work is defined in __main__") because the shard function was taken from __main__."""
     out = tmp_path / "small.npz"
     res = subprocess.run([sys.executable, "-m", "agents.imitation.make_dataset", "--n", "2",
-                          "--shard-size", "2", "--workers", "1", "--no-progress", "--out", str(out)],
+                          "--shard-size", "2", "--workers", "1", "--no-progress", "--out",
+                          str(out)],
                          capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-2000:]
     assert out.exists()
