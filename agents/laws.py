@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.rl.features import augment_observation, feature_constants, validate_features
+from agents.features import augment_observation, feature_constants, validate_features
 from guidance.law import FlightComputer, GuidanceLaw, Navigation
 
 __all__ = ["SB3Law", "law_from_spec"]
@@ -25,7 +25,7 @@ class SB3Law(GuidanceLaw):
         trained without normalisation.
     name : str
     obs_features : list of str, optional
-        Derived observation features the model was trained with (:mod:`agents.rl.features`,
+        Derived observation features the model was trained with (:mod:`agents.features`,
         the run's ``obs_features``); computed from the observation and the flight computer's
         nominal constants and appended before normalisation, as in training.
     """

@@ -23,7 +23,7 @@ command-line flags override them. Each run directory ``<log-folder>/<algo>/<env 
 
 Agents-side additions selected by YAML keys of the entry (recorded in ``config.yml``):
 ``curriculum`` (start states from optimal trajectories, :mod:`agents.rl.curriculum`),
-``obs_features`` (derived inputs appended to the observation, :mod:`agents.rl.features`;
+``obs_features`` (derived inputs appended to the observation, :mod:`agents.features`;
 re-applied
 by :class:`agents.laws.SB3Law` when a run is loaded) and ``reward_shaping``
 (potential-based, policy-invariant, training only, :mod:`agents.rl.shaping`). The env's own
@@ -196,7 +196,7 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
     resolve_algo_kwargs(hp, args.algo, n_actions=1)
     check_env(args.env, hp.get("env_kwargs"))
     if hp.get("obs_features"):
-        from agents.rl.features import validate_features
+        from agents.features import validate_features
 
         validate_features(hp["obs_features"])
     run = dict(vars(args))

@@ -49,7 +49,7 @@ A law in ten lines (flown by ``python -m guidance.campaign`` once registered, se
 
 from __future__ import annotations
 
-from abc import abstractmethod
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -286,7 +286,7 @@ class Truth:
     t_s: np.ndarray
 
 
-class Law:
+class Law(ABC):  # noqa: B024  (no abstract method: its subclasses each add theirs)
     """What every law has: a name, and a reset with the flight computer (see the module
     docstring). Fly a :class:`GuidanceLaw` or a :class:`PrivilegedLaw`."""
 

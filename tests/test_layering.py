@@ -1,4 +1,10 @@
-"""Imports point one way: agents -> optimizers -> lunar_env (function-local imports included)."""
+"""Imports point one way (function-local imports included):
+
+    lunar (the command line) -> agents -> guidance -> optimizers -> lunar_env
+
+and, inside ``guidance/`` and ``agents/``, from a room to the rooms below it only (the orders of
+:data:`ROOMS`). ``guidance`` needs neither torch nor SB3, and the env tests import only the envs
+(and the optimisers they replay)."""
 
 import ast
 from pathlib import Path
@@ -6,10 +12,20 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-LAYER = {"lunar_env": 0, "optimizers": 1, "agents": 2}
+LAYER = {"lunar_env": 0, "optimizers": 1, "guidance": 2, "agents": 3, "lunar": 4}
+
+#: the rooms of a package, lowest first: a room imports only itself and the rooms before it
+ROOMS = {
+    "guidance": ["explicit", "frames", "families", "law", "registry", "flight", "laws",
+                 "evaluation", "campaign"],
+    "agents": ["common", "hyperparams", "features", "laws", "evaluate", "rl", "imitation",
+               "train"],
+}
 
 
 def _imports(path: Path, module: str) -> set[str]:
+    """Every module ``module`` (at ``path``) imports, with ``from X import y`` as both ``X`` and
+    ``X.y`` (``y`` may be a submodule)."""
     tree = ast.parse(path.read_text())
     is_pkg = path.name == "__init__.py"
     out = set()
@@ -18,16 +34,18 @@ def _imports(path: Path, module: str) -> set[str]:
             out.update(a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom):
             if node.level == 0:
-                out.add(node.module or "")
+                base = node.module or ""
             else:
-                base = module.split(".") if is_pkg else module.split(".")[:-1]
-                base = base[: len(base) - (node.level - 1)]
-                out.add(".".join(base + ([node.module] if node.module else [])))
+                b = module.split(".") if is_pkg else module.split(".")[:-1]
+                b = b[: len(b) - (node.level - 1)]
+                base = ".".join(b + ([node.module] if node.module else []))
+            out.add(base)
+            out.update(f"{base}.{a.name}" for a in node.names)
     return out
 
 
-def _modules():
-    for pkg in LAYER:
+def _modules(packages=LAYER):
+    for pkg in packages:
         for path in (ROOT / pkg).rglob("*.py"):
             parts = list(path.relative_to(ROOT).with_suffix("").parts)
             if parts[-1] == "__init__":
@@ -45,14 +63,48 @@ def test_no_import_points_up(pkg):
             top = target.split(".")[0]
             if top in LAYER and LAYER[top] > LAYER[owner]:
                 bad.append(f"{module} imports {target}")
-    assert not bad, "layering violations (agents -> optimizers -> lunar_env):\n" + "\n".join(bad)
+    assert not bad, "layering violations (lunar -> agents -> guidance -> optimizers -> " \
+                    "lunar_env):\n" + "\n".join(sorted(bad))
+
+
+@pytest.mark.parametrize("pkg", list(ROOMS))
+def test_rooms_import_only_rooms_below_them(pkg):
+    rooms = ROOMS[pkg]
+    bad = []
+    for _, module, path in _modules((pkg,)):
+        parts = module.split(".")
+        if len(parts) < 2:
+            continue
+        assert parts[1] in rooms, f"{module}: room {parts[1]!r} has no place in ROOMS[{pkg!r}]"
+        for target in _imports(path, module):
+            tp = target.split(".")
+            if tp[0] == pkg and len(tp) > 1 and tp[1] in rooms \
+                    and rooms.index(tp[1]) > rooms.index(parts[1]):
+                bad.append(f"{module} imports {target}")
+    assert not bad, f"{pkg}: a room imports a room above it:\n" + "\n".join(sorted(set(bad)))
+
+
+def test_guidance_needs_neither_torch_nor_sb3():
+    heavy = ("torch", "stable_baselines3", "sb3_contrib")
+    bad = [f"{module} imports {t}" for _, module, path in _modules(("guidance",))
+           for t in _imports(path, module) if t.split(".")[0] in heavy]
+    assert not bad, "\n".join(bad)
+
+
+def test_env_tests_import_only_the_envs_and_the_optimisers():
+    bad = []
+    for path in (ROOT / "tests" / "lunar_env").rglob("*.py"):
+        for t in _imports(path, "tests.lunar_env." + path.stem):
+            if t.split(".")[0] in ("guidance", "agents", "lunar"):
+                bad.append(f"{path.name} imports {t}")
+    assert not bad, "\n".join(bad)
 
 
 def test_optimizers_common_imports_nothing_above_it():
     """optimizers.common is the floor of optimizers: it imports lunar_env and itself only, never a
     problem, a family, the certification or the reproductions above it."""
     bad = []
-    for _, module, path in _modules():
+    for _, module, path in _modules(("optimizers",)):
         if not (module == "optimizers.common" or module.startswith("optimizers.common.")):
             continue
         for target in _imports(path, module):
@@ -60,83 +112,3 @@ def test_optimizers_common_imports_nothing_above_it():
                     target == "optimizers.common" or target.startswith("optimizers.common.")):
                 bad.append(f"{module} imports {target}")
     assert not bad, "optimizers.common points up:\n" + "\n".join(bad)
-
-
-PRIVATE_OWNER = "lunar_env.uncertainty"
-
-
-def _resolve(node: ast.ImportFrom, module: str, is_pkg: bool) -> str:
-    if node.level == 0:
-        return node.module or ""
-    base = module.split(".") if is_pkg else module.split(".")[:-1]
-    base = base[: len(base) - (node.level - 1)]
-    return ".".join(base + ([node.module] if node.module else []))
-
-
-def _inside(name: str) -> bool:
-    return name == PRIVATE_OWNER or name.startswith(PRIVATE_OWNER + ".")
-
-
-def _private_uses(source: str, module: str, is_pkg: bool = False) -> list[str]:
-    """Where the code ``source`` of ``module`` imports an underscore name of
-    lunar_env.uncertainty (a private module or a private attribute), or reads one through a
-    name bound to the package or a module of it (``unc._x``)."""
-    tree = ast.parse(source)
-    bound: set[str] = set()
-    bad = []
-
-    def private(dotted: str) -> bool:
-        return any(p.startswith("_") for p in dotted[len(PRIVATE_OWNER):].split(".") if p)
-
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            for a in node.names:
-                if _inside(a.name):
-                    if private(a.name):
-                        bad.append(f"{module}:{node.lineno} imports {a.name}")
-                    if a.asname:
-                        bound.add(a.asname)
-        elif isinstance(node, ast.ImportFrom):
-            source = _resolve(node, module, is_pkg)
-            for a in node.names:
-                target = f"{source}.{a.name}"
-                if _inside(source) and (private(source) or a.name.startswith("_")):
-                    bad.append(f"{module}:{node.lineno} imports {a.name} from {source}")
-                elif _inside(target):
-                    bound.add(a.asname or a.name)
-    for node in ast.walk(tree):
-        if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
-                and node.value.id in bound and node.attr.startswith("_")
-                and not node.attr.startswith("__")):
-            bad.append(f"{module}:{node.lineno} reads {node.value.id}.{node.attr}")
-    return bad
-
-
-def test_nothing_outside_lunar_env_uncertainty_uses_its_private_names():
-    """lunar_env.uncertainty's private names (its _random module, its underscored helpers)
-    are its own: the tasks, the agents, the benchmarks and the tests use its public API."""
-    bad = []
-    for top in (*LAYER, "benchmarks", "tests"):
-        for path in (ROOT / top).rglob("*.py"):
-            parts = list(path.relative_to(ROOT).with_suffix("").parts)
-            if parts[-1] == "__init__":
-                parts = parts[:-1]
-            module = ".".join(parts)
-            if _inside(module):
-                continue
-            bad += _private_uses(path.read_text(), module, path.name == "__init__.py")
-    assert not bad, "private names of lunar_env.uncertainty used outside it:\n" + "\n".join(bad)
-
-
-def test_the_private_name_check_sees_each_form():
-    src = ("from lunar_env.uncertainty._random import splitmix64\n"
-           "from lunar_env.uncertainty.navigation import _shrink\n"
-           "from lunar_env import uncertainty as unc\n"
-           "import lunar_env.uncertainty.navigation as nav\n"
-           "unc._x\nnav._y\nunc.navigation_noise\n")
-    found = _private_uses(src, "tests.probe")
-    assert len(found) == 4, found
-    # relative imports inside lunar_env resolve to the package too
-    found = _private_uses("from ..uncertainty import _random\nfrom .. import uncertainty as u\n"
-                          "u._shrink\n", "lunar_env.envs.task")
-    assert len(found) == 2, found

@@ -27,12 +27,12 @@ def build_model(env_id: str, env_kwargs: dict[str, Any] | None, policy_kwargs: d
     """A fresh SB3 PPO model (MlpPolicy) on a one-lander SB3 vec env of ``env_id``.
 
     Only its policy is trained here; the PPO wrapper makes the saved zip loadable by
-    ``PPO.load`` and fine-tunable. ``obs_features`` (:mod:`agents.rl.features`) widen its input
+    ``PPO.load`` and fine-tunable. ``obs_features`` (:mod:`agents.features`) widen its input
     as in RL training; the run's ``config.yml`` records them, so :class:`agents.evaluate.
     SB3Law` and ``train.py --init-from`` apply the same inputs.
 
     ``standardize_inputs``: an array of policy inputs (N, n_in) whose statistics the policy
-    standardises its inputs with (:class:`agents.rl.features.StandardizedInputs`), or True for
+    standardises its inputs with (:class:`agents.features.StandardizedInputs`), or True for
     placeholder statistics that a loaded state dict replaces.
     """
     from stable_baselines3 import PPO
@@ -41,12 +41,12 @@ def build_model(env_id: str, env_kwargs: dict[str, Any] | None, policy_kwargs: d
 
     venv = make_sb3_vec_env(env_id, 1, seed=seed, **(env_kwargs or {}))
     if obs_features:
-        from agents.rl.features import ObsFeatureWrapper
+        from agents.features import ObsFeatureWrapper
 
         venv = ObsFeatureWrapper(venv, obs_features)
     pk = _policy_kwargs(policy_kwargs)
     if standardize_inputs is not None and standardize_inputs is not False:
-        from agents.rl.features import StandardizedInputs, standardized_inputs_kwargs
+        from agents.features import StandardizedInputs, standardized_inputs_kwargs
 
         if isinstance(standardize_inputs, np.ndarray):
             pk.update(standardized_inputs_kwargs(standardize_inputs))
@@ -60,7 +60,7 @@ def policy_inputs(env_id: str, env_kwargs: dict[str, Any] | None,
     """``f(obs) -> policy input``: the env observation with the ``obs_features`` appended
     (identity without features). Datasets and DAgger labels store the env's raw
     observations; the features are applied when fitting and acting."""
-    from agents.rl.features import augment_observation, feature_constants, validate_features
+    from agents.features import augment_observation, feature_constants, validate_features
 
     names = validate_features(obs_features)
     if not names:

@@ -73,18 +73,17 @@ def rank_strategies(env_id: str = "LunarPinpointLanding-v2", *, n_random: int = 
 
     import lunar_env  # noqa: F401
     from agents.rl.shaping import resolve_success_bonus
-    from guidance.families import family_of
-    from guidance.families.pinpoint import PinpointFamily
     from guidance.law import FlightComputer
     from guidance.laws.pontryagin_pinpoint import PinpointPontryaginExpert
     from lunar_env.envs.pinpoint_landing import action_from_angles, angles_from_action
+    from lunar_env.families import family_name
     from optimizers.reproduce.peng2012 import get_solver
 
     if not 0.0 < gamma <= 1.0:
         raise ValueError(f"gamma={gamma}: must be in (0, 1]")
     env = gym.make(env_id, **(env_kwargs or {})).unwrapped
     scenario = env.scenario
-    if not isinstance(family_of(scenario), PinpointFamily):  # the strategies below are 3D ones
+    if family_name(scenario) != "pinpoint":  # the strategies below are 3D ones
         raise ValueError(f"{env_id!r} is not a pinpoint env (scenario {scenario.name!r})")
     solver = get_solver(scenario)
     solver.build()

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
 
-from agents.rl.features import feature_constants
+from agents.features import feature_constants
 from lunar_env.validation import require_number
 
 __all__ = ["PotentialShaping", "resolve_success_bonus", "surface_speed_m_s"]

@@ -57,8 +57,8 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
     make_sb3_vec_env`); other Gymnasium ids through SB3's ``make_vec_env`` (``DummyVecEnv``).
     ``curriculum`` (the YAML mapping) wraps the batch in :class:`agents.rl.curriculum.
     OptimalStartCurriculum` annealed over ``total_timesteps``; ``obs_features`` (names of
-    :mod:`agents.rl.features`) appends derived features to the observations
-    (:class:`agents.rl.features.ObsFeatureWrapper`, outside the curriculum); ``reward_shaping``
+    :mod:`agents.features`) appends derived features to the observations
+    (:class:`agents.features.ObsFeatureWrapper`, outside the curriculum); ``reward_shaping``
     (YAML mapping) adds the potential-based shaping of :class:`agents.rl.shaping.PotentialShaping`
     with discount ``gamma`` (training only: evaluation measures landings, not rewards);
     ``error_curriculum`` (YAML mapping) anneals the env's uncertainty model in
@@ -96,7 +96,7 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
 
             venv = PotentialShaping(venv, gamma=gamma, **reward_shaping)
         if obs_features:
-            from agents.rl.features import ObsFeatureWrapper
+            from agents.features import ObsFeatureWrapper
 
             venv = ObsFeatureWrapper(venv, obs_features)
     else:
@@ -310,7 +310,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             venv.training = update_stats
         kwargs = resolve_algo_kwargs(hp, algo, n_actions=int(np.prod(venv.action_space.shape)))
         if init is not None:
-            from agents.rl.features import StandardizedInputs
+            from agents.features import StandardizedInputs
 
             fx = getattr(init.policy, "features_extractor", None)
             if isinstance(fx, StandardizedInputs):

@@ -175,7 +175,7 @@ def _evaluation_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: dict
     for _ in range(n_inactive):
         venv = TrainingOnly(venv)
     if obs_features:
-        from agents.rl.features import ObsFeatureWrapper
+        from agents.features import ObsFeatureWrapper
 
         venv = ObsFeatureWrapper(venv, list(obs_features))
     return VecMonitor(venv)

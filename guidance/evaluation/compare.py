@@ -53,9 +53,9 @@ from typing import Any
 import numpy as np
 
 from guidance.evaluation.score import RandomLaw, normalised_score
-from guidance.families import guidance_family
 from guidance.flight import PolicyResult, initial_states, rollout
 from guidance.law import Law, law_label
+from guidance.laws.baselines import BASELINE_FAMILIES
 from optimizers.optimum import optimum_family
 
 __all__ = ["compare", "baseline_laws", "DEFAULT_ENV_ID", "DEFAULT_N_STATES", "DEFAULT_SEED"]
@@ -128,7 +128,7 @@ def baseline_laws(scenario, optimum, n_states: int, *, open_loop: bool = True,
     """The optimiser baselines of an evaluation: the open-loop optimum on every case and the
     family's closed-loop expert on the first ``n_expert_cases`` (None: the family's default;
     0: none)."""
-    family = guidance_family(scenario)
+    family = BASELINE_FAMILIES.of(scenario)
     rows: list[tuple[Law, int]] = []
     if open_loop:
         rows.append((family.open_loop_law(optimum), n_states))
@@ -186,7 +186,7 @@ def compare(env_id: str, laws: list[Law], n_states: int = DEFAULT_N_STATES,
     if open_loop:
         optimum_return = runs[len(laws)].episode_return
     else:
-        optimum_return = rollout(env_id, guidance_family(scenario).open_loop_law(optimum),
+        optimum_return = rollout(env_id, BASELINE_FAMILIES.of(scenario).open_loop_law(optimum),
                                  n_states, seed, env_kwargs, trace_cases=0).episode_return
     optimum_return = np.where(np.isfinite(optimum.fuel_kg), optimum_return, np.nan)
     rows = [_summary(r, optimum.fuel_kg, optimum.tf_s, random_return, optimum_return)

@@ -1,11 +1,11 @@
-"""What guidance needs of an env family: its guidance frame, its encoder and its expert laws.
+"""What the flight computer needs of an env family: its guidance frame and its encoder.
 
 The one place where guidance meets an env family's geometry. A :class:`GuidanceFamily` gives
 the flight computer (:class:`guidance.law.FlightComputer`) the frame map of navigated states
-(:mod:`guidance.frames`) and the encoder of thrust commands into the env's actions, and gives
-evaluations the family's optimiser baselines: the replay of each case's optimum and the
-closed-loop expert. Laws never ask for the family: they read ``nav.frame`` and return a
-:class:`~guidance.law.ThrustCommand`.
+(:mod:`guidance.frames`), the encoder of thrust commands into the env's actions, and the
+vehicle's pointing bounds. Laws never ask for the family: they read ``nav.frame`` and return a
+:class:`~guidance.law.ThrustCommand`. (The family's optimiser baselines are
+:mod:`guidance.laws.baselines`; its plots :mod:`guidance.evaluation.plots`.)
 
 Families are registered in :data:`GUIDANCE_FAMILIES` (a
 :class:`lunar_env.families.FamilyRegistry`) by the modules that own them: ``planar`` and
@@ -31,8 +31,6 @@ class GuidanceFamily(ABC):
 
     #: axes of the guidance frame (horizontal axes, then up)
     n_axes: int = 3
-    #: cases the family's closed-loop expert flies in an evaluation by default (None: all)
-    default_expert_cases: int | None = None
 
     @abstractmethod
     def frame_function(self, scenario) -> Callable[[np.ndarray], Any]:
@@ -53,15 +51,6 @@ class GuidanceFamily(ABC):
         """Bounds of the thrust's elevation above the local horizontal (None: unbounded in the
         guidance plane)."""
         return None
-
-    @abstractmethod
-    def expert_law(self, scenario):
-        """The closed-loop expert: the optimum re-solved from the navigation solution."""
-
-    @abstractmethod
-    def open_loop_law(self, optimum):
-        """The replay of each case's optimal control history
-        (:class:`optimizers.optimum.PerCaseOptimum`; case id = row)."""
 
 
 #: the guidance families, by ``scenario.family``

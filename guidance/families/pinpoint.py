@@ -1,7 +1,6 @@
 """The 3D pinpoint family of guidance (``LunarPinpointLanding-v*``): its (along-track,
-cross-track, up) frame, the encoder of thrust commands into the elevation and azimuth actions,
-and its optimiser baselines (the replay of the per-case GPM optimum and the Pontryagin
-feedback expert)."""
+cross-track, up) frame and the encoder of thrust commands into the elevation and azimuth
+actions."""
 
 from __future__ import annotations
 
@@ -11,13 +10,11 @@ from functools import partial
 
 import numpy as np
 
-from guidance.evaluation.plots import PlotFamily
 from guidance.families import GuidanceFamily
 from guidance.frames import LocalFrame, pinpoint_frame
-from guidance.law import GuidanceLaw, Navigation
 from lunar_env.envs.pinpoint_landing import action_from_angles
 
-__all__ = ["PinpointGuidance", "PinpointOpenLoopLaw", "PinpointPlots", "encode_pinpoint"]
+__all__ = ["PinpointGuidance", "encode_pinpoint"]
 
 
 def encode_pinpoint(direction: np.ndarray, throttle: np.ndarray | None, throttled: bool,
@@ -43,9 +40,6 @@ class PinpointGuidance(GuidanceFamily):
     """The pinpoint family (``scenario.family == "pinpoint"``)."""
 
     n_axes = 3
-    #: the feedback expert costs ~1 ms a decision and lands every case at the optimum's fuel:
-    #: 200 cases are enough for its row
-    default_expert_cases = 200
 
     def frame_function(self, scenario) -> Callable[[np.ndarray], LocalFrame]:
         return partial(pinpoint_frame, scaling=scenario.scaling(),
@@ -64,68 +58,3 @@ class PinpointGuidance(GuidanceFamily):
 
     def thrust_elevation_bounds_rad(self, scenario) -> tuple[float, float]:
         return tuple(scenario.alpha_bounds_rad)
-
-    def expert_law(self, scenario) -> GuidanceLaw:
-        from guidance.laws.pontryagin_pinpoint import PinpointPontryaginExpert
-
-        return PinpointPontryaginExpert(scenario)
-
-    def open_loop_law(self, optimum) -> GuidanceLaw:
-        return PinpointOpenLoopLaw(optimum.solutions)
-
-
-class PinpointOpenLoopLaw(GuidanceLaw):
-    """Replay of each case's optimal (α, β)(t), averaged over every env step (held after tf).
-    A law of the clock alone: it reads nothing of the navigation solution.
-
-    Cases whose solve failed fly the nominal braking attitude (α = 0, β = 180°) and are
-    reported like any other case.
-
-    Parameters
-    ----------
-    optima : list of PinpointOptimum
-        One per case (indexed by case id; :class:`optimizers.transcription.batch.
-        PinpointOptimum`).
-    t_offset_s : array_like, optional
-        Per-case episode time at which each plan starts (mid-flight plans; default 0).
-    """
-
-    name = "optimum, open loop"
-
-    def __init__(self, optima: list, t_offset_s=None) -> None:
-        self.optima = list(optima)
-        self.t_offset_s = (np.zeros(len(self.optima)) if t_offset_s is None
-                           else np.asarray(t_offset_s, dtype=np.float64).reshape(-1))
-        self._ids = np.zeros(0, dtype=int)
-
-    def reset(self, computer, case_ids: np.ndarray) -> None:
-        super().reset(computer, case_ids)
-        self._ids = np.asarray(case_ids)
-
-    def act(self, nav: Navigation) -> np.ndarray:
-        dt = self.computer.dt_s
-        ang = np.tile([0.0, np.pi], (len(self._ids), 1))
-        for k, cid in enumerate(self._ids):
-            opt = self.optima[cid]
-            if opt.success:
-                ang[k] = opt.mean_angles(float(nav.t_s[k]) - self.t_offset_s[cid], dt)
-        return self.computer.actions_from_controls(np.c_[ang, np.ones(len(ang))])
-
-
-class PinpointPlots(PlotFamily):
-    """Evaluation plots of the pinpoint family: altitude and actions against time."""
-
-    labels = ("time (s)", "altitude (km)", "action")
-
-    def plot_optimum(self, ax_trajectory, ax_control, solution, scenario) -> None:
-        s = scenario.scaling()
-        opt_r = np.linalg.norm(solution.states_nd[:, :3], axis=1) * s.length_m
-        ax_trajectory.plot(solution.t_nodes_s, (opt_r - scenario.body.radius_m) / 1e3, "k--",
-                           lw=2, label="optimum")
-
-    def plot_flight(self, ax_trajectory, ax_control, trace, scenario, label: str) -> None:
-        rad = np.linalg.norm(trace["state_nd"][:, :3], axis=1) * scenario.scaling().length_m
-        ax_trajectory.plot(trace["t_s"], (rad - scenario.body.radius_m) / 1e3, label=label)
-        for j in range(trace["action"].shape[1] if len(trace["action"]) else 0):
-            ax_control.step(trace["t_s"][:len(trace["action"])], trace["action"][:, j],
-                            where="post", label=f"{label} a{j}")

@@ -4,8 +4,8 @@ expert, re-solving from the navigation solution with the nominal model)."""
 
 from __future__ import annotations
 
-from guidance.families import guidance_family
 from guidance.law import GuidanceLaw
+from guidance.laws.baselines import BASELINE_FAMILIES
 from guidance.registry import flag, require_no_argument
 from lunar_env.families import family_name
 
@@ -20,7 +20,7 @@ def open_loop_from_spec(spec, context) -> GuidanceLaw:
     if context.nominal_optimum is None:
         raise ValueError("law 'open-loop' needs the per-case optimum; fly it in a campaign or "
                          "an evaluation, which compute it")
-    law = guidance_family(context.scenario).open_loop_law(context.nominal_optimum())
+    law = BASELINE_FAMILIES.of(context.scenario).open_loop_law(context.nominal_optimum())
     law.name = "open-loop"
     return law
 
@@ -60,6 +60,6 @@ def feedback_from_spec(spec, context) -> GuidanceLaw:
                                                                 False))
         law.name = spec.text
         return law
-    law = guidance_family(context.scenario).expert_law(context.scenario)
+    law = BASELINE_FAMILIES.of(context.scenario).expert_law(context.scenario)
     law.name = "feedback"
     return law

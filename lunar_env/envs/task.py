@@ -29,7 +29,6 @@ import numpy as np
 from gymnasium import spaces
 
 from ..uncertainty import EpisodeErrors, UncertaintyModel, resolve_uncertainty
-from ..uncertainty.navigation import navigation_constants
 from ..validation import require_bool, require_finite_positive, require_integer
 
 __all__ = ["LandingTask", "StepSettings", "fall_steps", "float_array", "box"]
@@ -198,7 +197,7 @@ class LandingTask(metaclass=_FrozenAfterInit):
                  uncertainty: UncertaintyModel | str | dict | None = None) -> None:
         self.uncertainty = resolve_uncertainty(uncertainty)
         # the navigation model packed once for the compiled navigation kernels
-        self._nav_consts = navigation_constants(self.uncertainty)
+        self._nav_consts = self.uncertainty.navigation_constants()
         self.scenario = scenario
         self.settings = settings
         self.scaling = s = scenario.scaling()

@@ -59,14 +59,7 @@ The package, one job a module:
 """
 
 from ._random import TRUNCATION_SIGMA
-from .episode import (
-    N_NORMALS,
-    EpisodeErrors,
-    draw_errors,
-    episode_errors,
-    error_stream,
-    errors_from_option,
-)
+from .episode import N_NORMALS, EpisodeErrors, error_stream
 from .model import (
     NAMED_SETS,
     SIGMA_LIMITS,
@@ -74,9 +67,8 @@ from .model import (
     get_uncertainty,
     resolve_uncertainty,
 )
-from .navigation import navigation_errors, navigation_noise, radar_weight
+from .navigation import navigation_noise
 
 __all__ = ["UncertaintyModel", "EpisodeErrors", "NAMED_SETS", "SIGMA_LIMITS", "get_uncertainty",
-           "resolve_uncertainty", "error_stream", "draw_errors", "navigation_noise",
-           "radar_weight", "errors_from_option", "episode_errors", "navigation_errors",
-           "TRUNCATION_SIGMA", "N_NORMALS"]
+           "resolve_uncertainty", "error_stream", "navigation_noise", "TRUNCATION_SIGMA",
+           "N_NORMALS"]

@@ -6,20 +6,17 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numba
 import numpy as np
 
 from ..validation import InvalidTypeError
 from ._random import TRUNCATION_SIGMA
-from .navigation import _errors, navigation_constants
+from .model import UncertaintyModel
+from .navigation import _errors
 
-if TYPE_CHECKING:
-    from .model import UncertaintyModel
-
-__all__ = ["EpisodeErrors", "error_stream", "N_NORMALS", "draw_errors", "episode_errors",
-           "errors_from_option"]
+__all__ = ["EpisodeErrors", "error_stream", "N_NORMALS"]
 
 #: standard normals drawn per episode, in this order: entry position (3), entry velocity (3),
 #: thrust, Isp, misalignment (2), wet mass, navigation position bias (3), velocity bias (3)
@@ -230,21 +227,5 @@ class EpisodeErrors:
         :meth:`~lunar_env.uncertainty.UncertaintyModel.radar_weight`, in one compiled call of
         :func:`~lunar_env.uncertainty.navigation.navigation_error`. ``n_axes`` = 2 (a planar
         task) leaves the crossrange components 0 and draws no noise for them."""
-        return _errors(navigation_constants(model), self.noise_key, self.nav_position_bias_m,
+        return _errors(model.navigation_constants(), self.noise_key, self.nav_position_bias_m,
                        self.nav_velocity_bias_m_s, counters, altitude_m, n_axes)
-
-
-def draw_errors(model: UncertaintyModel, rng: np.random.Generator) -> EpisodeErrors:
-    """Same as :meth:`EpisodeErrors.draw`."""
-    return EpisodeErrors.draw(model, rng)
-
-
-def episode_errors(model: UncertaintyModel, rng: np.random.Generator, pinned=None,
-                   row: int | None = None) -> EpisodeErrors:
-    """Same as :meth:`EpisodeErrors.for_reset`."""
-    return EpisodeErrors.for_reset(model, rng, pinned, row)
-
-
-def errors_from_option(value, row: int | None = None) -> EpisodeErrors:
-    """Same as :meth:`EpisodeErrors.from_option`."""
-    return EpisodeErrors.from_option(value, row)

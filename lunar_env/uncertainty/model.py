@@ -253,7 +253,18 @@ class UncertaintyModel:
         (m): 1 above the radar's lock altitude; below it ``radar_lock_fraction`` × altitude /
         lock altitude, never under the near-ground fractions (the arithmetic of the compiled
         :func:`~lunar_env.uncertainty.navigation.navigation_error`)."""
-        return _weights(self, altitude_m)
+        return _weights(altitude_m, self.radar_altitude_m, self.radar_lock_fraction,
+                        self.near_ground_position_fraction, self.near_ground_velocity_fraction)
+
+    def navigation_constants(self) -> np.ndarray:
+        """The navigation part of the model packed for the compiled kernels
+        (:func:`~lunar_env.uncertainty.navigation.navigation_error`): float64 (10,) = noise σ of
+        position (3, m) and velocity (3, m/s) along (up, downrange, crossrange), radar lock
+        altitude (m), lock fraction, near-ground position and velocity fractions."""
+        return np.array([*self.nav_position_noise_m, *self.nav_velocity_noise_m_s,
+                         self.radar_altitude_m, self.radar_lock_fraction,
+                         self.near_ground_position_fraction,
+                         self.near_ground_velocity_fraction], dtype=np.float64)
 
 
 # -------------------------------------------------------------------------------------------

@@ -21,20 +21,13 @@ Python; the tasks' fused kernels equal it bit for bit.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numba
 import numpy as np
 from numba.extending import register_jitable
 
 from ._random import NUMPY_ERROR_MODEL, standard_normals
 
-if TYPE_CHECKING:
-    from .episode import EpisodeErrors
-    from .model import UncertaintyModel
-
-__all__ = ["navigation_constants", "standard_normals", "navigation_error", "navigation_noise",
-           "navigation_errors", "radar_weight"]
+__all__ = ["standard_normals", "navigation_error", "navigation_noise"]
 
 @numba.njit(cache=True, **NUMPY_ERROR_MODEL)
 def _noise_kernel(keys, counters, out):  # pragma: no cover  (compiled)
@@ -74,17 +67,6 @@ def _shrink(altitude_m, radar_altitude_m, lock_fraction, floor):
     return above * 1.0 + (1.0 - above) * np.maximum(lock_fraction * h, floor)
 
 
-def navigation_constants(model: UncertaintyModel) -> np.ndarray:
-    """The navigation part of ``model`` packed for the compiled kernels
-    (:func:`navigation_error`): float64 (10,) = noise σ of position (3, m) and velocity
-    (3, m/s) along (up, downrange, crossrange), radar lock altitude (m), lock fraction,
-    near-ground position and velocity fractions."""
-    m = model
-    return np.array([*m.nav_position_noise_m, *m.nav_velocity_noise_m_s, m.radar_altitude_m,
-                     m.radar_lock_fraction, m.near_ground_position_fraction,
-                     m.near_ground_velocity_fraction], dtype=np.float64)
-
-
 @register_jitable(inline="always", **NUMPY_ERROR_MODEL)
 def navigation_error(z, i, altitude_m, bias_p, bias_v, c, n_axes):
     """Lander i's navigation errors (position up, downrange, crossrange (m), velocity up,
@@ -103,7 +85,7 @@ def navigation_error(z, i, altitude_m, bias_p, bias_v, c, n_axes):
     bias_p, bias_v : ndarray, shape (n, 3)
         The episodes' navigation biases (m, m/s).
     c : ndarray, shape (10,)
-        :func:`navigation_constants` of the model.
+        :meth:`~lunar_env.uncertainty.UncertaintyModel.navigation_constants`.
     n_axes : int
         2 leaves the crossrange errors 0 (``z`` then needs only 4 rows); 3 for a 3D task.
 
@@ -150,25 +132,9 @@ def _errors(c: np.ndarray, keys: np.ndarray, bias_p: np.ndarray, bias_v: np.ndar
     return dpos, dvel
 
 
-def _weights(model: UncertaintyModel, altitude_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The position and velocity weights of ``model`` at ``altitude_m`` (NumPy)."""
+def _weights(altitude_m: np.ndarray, radar_altitude_m: float, lock_fraction: float,
+             position_floor: float, velocity_floor: float) -> tuple[np.ndarray, np.ndarray]:
+    """The position and velocity weights of the terminal sensors at ``altitude_m`` (NumPy)."""
     h = np.asarray(altitude_m, dtype=np.float64)
-    return (_shrink(h, model.radar_altitude_m, model.radar_lock_fraction,
-                    model.near_ground_position_fraction),
-            _shrink(h, model.radar_altitude_m, model.radar_lock_fraction,
-                    model.near_ground_velocity_fraction))
-
-
-def navigation_errors(model: UncertaintyModel, errors: EpisodeErrors, counters: np.ndarray,
-                      altitude_m: np.ndarray, n_axes: int = 3
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Same as ``errors.navigation_errors(model, counters, altitude_m, n_axes)``
-    (:meth:`~lunar_env.uncertainty.EpisodeErrors.navigation_errors`)."""
-    return errors.navigation_errors(model, counters, altitude_m, n_axes)
-
-
-def radar_weight(model: UncertaintyModel, altitude_m: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Same as ``model.radar_weight(altitude_m)``
-    (:meth:`~lunar_env.uncertainty.UncertaintyModel.radar_weight`)."""
-    return model.radar_weight(altitude_m)
+    return (_shrink(h, radar_altitude_m, lock_fraction, position_floor),
+            _shrink(h, radar_altitude_m, lock_fraction, velocity_floor))

@@ -8,8 +8,8 @@ import pytest
 
 import optimizers.optimum.pinpoint as po
 from guidance.evaluation.compare import _summary
-from guidance.families.pinpoint import PinpointOpenLoopLaw
 from guidance.flight import initial_states, rollout
+from guidance.laws.baselines import PinpointOpenLoopLaw
 from optimizers.transcription.batch import PinpointOptimum
 
 ENV_ID = "LunarPinpointLanding-v0"
@@ -73,8 +73,8 @@ def test_bad_inputs(scenario, tmp_path):
 
 def test_pinpoint_features_decode_and_shaping():
     from agents.common.vec_env import make_sb3_vec_env
-    from agents.rl.features import ObsFeatureWrapper, augment_observation, feature_constants
-    from agents.rl.features.pinpoint import PINPOINT_FEATURE_WIDTHS
+    from agents.features import ObsFeatureWrapper, augment_observation, feature_constants
+    from agents.features.pinpoint import PINPOINT_FEATURE_WIDTHS
     from agents.rl.shaping import PotentialShaping, gate_speed_and_range
     from lunar_env import dynamics as dyn
 
@@ -148,7 +148,7 @@ def test_reference_profile_and_stop_point_features():
     import gymnasium as gym
 
     import lunar_env  # noqa: F401
-    from agents.rl.features import augment_observation, feature_constants
+    from agents.features import augment_observation, feature_constants
     from optimizers.indirect.pinpoint_feedback import (
         PinpointFeedback,
         extremal_path,

@@ -6,22 +6,29 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from agents.features import FEATURE_FAMILIES
 from agents.imitation.families import IMITATION_FAMILIES
-from agents.rl.features import FEATURE_FAMILIES
 from agents.rl.starts import START_FAMILIES
 from guidance.evaluation.compare import baseline_laws
 from guidance.evaluation.plots import PLOT_FAMILIES
 from guidance.families import GUIDANCE_FAMILIES, guidance_family
-from guidance.families.pinpoint import PinpointGuidance, PinpointOpenLoopLaw
-from guidance.families.planar import PlanarGuidance, PlanarOpenLoopLaw
+from guidance.families.pinpoint import PinpointGuidance
+from guidance.families.planar import PlanarGuidance
 from guidance.law import GuidanceLaw
+from guidance.laws.baselines import (
+    BASELINE_FAMILIES,
+    PinpointOpenLoopLaw,
+    PlanarBaselines,
+    PlanarOpenLoopLaw,
+)
 from guidance.laws.pontryagin_pinpoint import PinpointPontryaginExpert
 from guidance.laws.pontryagin_planar import PlanarReplanningLaw
 from lunar_env import get_scenario
 from lunar_env.families import FamilyRegistry, family_name
 from optimizers.optimum import OPTIMUM_FAMILIES, PerCaseOptimum
 
-REGISTRIES = (GUIDANCE_FAMILIES, OPTIMUM_FAMILIES, PLOT_FAMILIES, FEATURE_FAMILIES,
+REGISTRIES = (GUIDANCE_FAMILIES, BASELINE_FAMILIES, OPTIMUM_FAMILIES, PLOT_FAMILIES,
+              FEATURE_FAMILIES,
               START_FAMILIES, IMITATION_FAMILIES)
 
 
@@ -72,7 +79,7 @@ def test_baseline_laws_follow_the_family_defaults_and_the_counts_asked():
     opt = PerCaseOptimum(np.zeros(30), np.zeros(30), [None] * 30)
     rows = baseline_laws(sc, opt, 30)
     assert [type(law) for law, _ in rows] == [PlanarOpenLoopLaw, PlanarReplanningLaw]
-    assert [n for _, n in rows] == [30, PlanarGuidance.default_expert_cases]
+    assert [n for _, n in rows] == [30, PlanarBaselines.default_expert_cases]
     assert [n for _, n in baseline_laws(sc, opt, 5)] == [5, 5]
     assert baseline_laws(sc, opt, 5, open_loop=False, n_expert_cases=0) == []
     pp = get_scenario("peng2012")

@@ -166,8 +166,7 @@ def test_a_thrust_command_is_encoded_by_the_env_and_the_replays_fly_its_throttle
     # channel, and a campaign on it stopped with "action has shape (10, 2)".
     import gymnasium as gym
 
-    from guidance.families.pinpoint import PinpointOpenLoopLaw
-    from guidance.families.planar import PlanarOpenLoopLaw
+    from guidance.laws.baselines import PinpointOpenLoopLaw, PlanarOpenLoopLaw
 
     env = gym.make(env_id, throttle_channel=True)
     computer = FlightComputer.of(env, env_id)

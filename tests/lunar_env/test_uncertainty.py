@@ -583,23 +583,3 @@ def test_plant_scaling_by_name_equals_the_packed_indices(env_id):
         np.testing.assert_array_equal(core._batch._p[i], by_index)
     assert (e.thrust_scale != 1.0).all() and (e.isp_scale != 1.0).all()
     env.close()
-
-
-def test_the_free_functions_are_the_methods():
-    """The module-level names kept from before the methods give the methods' results."""
-    m = get_uncertainty("standard")
-    a = unc.draw_errors(m, unc.error_stream(7))
-    b = EpisodeErrors.draw(m, unc.error_stream(7))
-    for k, v in a.as_dict().items():
-        np.testing.assert_array_equal(v, getattr(b, k))
-    h = np.array([5000.0, 1000.0, 3.0])
-    np.testing.assert_array_equal(unc.radar_weight(m, h), m.radar_weight(h))
-    many = a.take([0, 0, 0])
-    c = np.array([0, 1, 2])
-    np.testing.assert_array_equal(unc.navigation_errors(m, many, c, h),
-                                  many.navigation_errors(m, c, h))
-    pinned = {"thrust_scale": 0.97}
-    assert unc.errors_from_option(pinned).thrust_scale[0] == 0.97
-    e = unc.episode_errors(m, unc.error_stream(7), pinned)
-    assert e.thrust_scale[0] == EpisodeErrors.for_reset(m, unc.error_stream(7),
-                                                        pinned).thrust_scale[0] == 0.97

@@ -15,8 +15,8 @@ import pytest
 
 pytest.importorskip("minari")
 
-from agents import dataset as dataset_cli  # noqa: E402
 from agents.imitation import cli as im  # noqa: E402
+from agents.imitation import make_dataset as dataset_cli  # noqa: E402
 from agents.imitation.data import load_dataset  # noqa: E402
 from agents.imitation.minari_data import (  # noqa: E402
     _episode_rows,

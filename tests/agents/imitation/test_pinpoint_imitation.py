@@ -121,7 +121,7 @@ def test_pinpoint_bc_and_dagger_quick(pinpoint_dataset, pinpoint_bc, tmp_path):
     # CI version of the fine-tuning stage: the from_dagger profile starts PPO from the clone,
     # with the clone's input standardisation and raw observations
     import agents.train as tr
-    from agents.rl.features import StandardizedInputs
+    from agents.features import StandardizedInputs
 
     ft_dir = tmp_path / "ft"
     assert tr.main(["--env", ENV_ID, "--config", "from_dagger", "--init-from", str(dg_dir),

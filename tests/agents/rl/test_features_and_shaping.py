@@ -6,14 +6,14 @@ import yaml
 
 from agents import train as tr
 from agents.common.vec_env import make_sb3_vec_env
-from agents.laws import SB3Law
-from agents.rl.features import (
+from agents.features import (
     ObsFeatureWrapper,
     augment_observation,
     feature_constants,
     validate_features,
 )
-from agents.rl.features.planar import PLANAR_FEATURE_WIDTHS
+from agents.features.planar import PLANAR_FEATURE_WIDTHS
+from agents.laws import SB3Law
 from agents.rl.shaping import PotentialShaping, surface_speed_m_s
 from guidance.flight import rollout
 

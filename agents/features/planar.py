@@ -1,5 +1,5 @@
 """Derived observation features of the planar soft landing (``LunarSoftLanding-v0``), answered
-for :mod:`agents.rl.features` by :class:`guidance.families.planar.PlanarFamily`.
+for :mod:`agents.features` by :class:`guidance.families.planar.PlanarFamily`.
 
 Why: ``LunarSoftLanding-v0`` observes altitude / 15 km, radial speed / 169 m/s and horizontal
 speed / 1.69 km/s (:mod:`lunar_env.envs.soft_landing`). Those scales suit the start of the
@@ -40,7 +40,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from agents.rl.features import FeatureFamily
+from agents.features import FeatureFamily
 
 __all__ = ["PLANAR_FEATURE_WIDTHS", "augment_planar", "planar_feature_bounds"]
 
@@ -58,7 +58,7 @@ def augment_planar(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np.nd
         ``LunarSoftLanding-v0`` observations (altitude/h₀, v_r/(0.1 v₀), v_t/v₀, propellant
         fraction, time fraction).
     consts : dict
-        :func:`agents.rl.features.feature_constants` of the env.
+        :func:`agents.features.feature_constants` of the env.
     names : sequence of str
         Feature names (:data:`PLANAR_FEATURE_WIDTHS`), at least one.
 
@@ -102,7 +102,7 @@ def augment_planar(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np.nd
 
 def planar_feature_bounds(names: Sequence[str]) -> tuple[list[float], list[float]]:
     """Lower and upper bounds of the columns the features ``names`` add (the observation space
-    of :class:`agents.rl.features.ObsFeatureWrapper`)."""
+    of :class:`agents.features.ObsFeatureWrapper`)."""
     lo, hi = [], []
     for name in names:
         if name == "log_altitude":

@@ -1,8 +1,8 @@
 """Derived observation features for the landing policies (agents side; the env is unchanged).
 
 Each env family defines its own features (a :class:`FeatureFamily` registered in
-:data:`FEATURE_FAMILIES`): the planar soft landing's in :mod:`agents.rl.features.planar`, the
-pinpoint landing's in :mod:`agents.rl.features.pinpoint`. This module is the generic part: it
+:data:`FEATURE_FAMILIES`): the planar soft landing's in :mod:`agents.features.planar`, the
+pinpoint landing's in :mod:`agents.features.pinpoint`. This module is the generic part: it
 validates the names, asks the env's family for the features and their bounds, and wraps vec
 envs and policy inputs.
 
@@ -56,8 +56,8 @@ class FeatureFamily(ABC):
 #: the observation features of each env family, by ``scenario.family``
 FEATURE_FAMILIES: FamilyRegistry[FeatureFamily] = FamilyRegistry(
     "observation-feature", entry_point_group="lunar_env.feature_families")
-FEATURE_FAMILIES.register("planar", "agents.rl.features.planar:PlanarFeatures")
-FEATURE_FAMILIES.register("pinpoint", "agents.rl.features.pinpoint:PinpointFeatures")
+FEATURE_FAMILIES.register("planar", "agents.features.planar:PlanarFeatures")
+FEATURE_FAMILIES.register("pinpoint", "agents.features.pinpoint:PinpointFeatures")
 
 
 def validate_features(names: Sequence[str] | None) -> list[str]:

@@ -1,5 +1,5 @@
 """Derived observation features of the 3D pinpoint landing (``LunarPinpointLanding-v*``),
-answered for :mod:`agents.rl.features` by
+answered for :mod:`agents.features` by
 :class:`guidance.families.pinpoint.PinpointFamily` (the feature names and their reasons:
 :func:`augment_pinpoint`)."""
 
@@ -9,7 +9,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from agents.rl.features import FeatureFamily
+from agents.features import FeatureFamily
 
 __all__ = ["PINPOINT_FEATURE_WIDTHS", "augment_pinpoint", "pinpoint_feature_bounds",
            "pinpoint_feature_constants", "reference_profile", "straight_line_stop"]

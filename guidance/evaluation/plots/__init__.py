@@ -2,8 +2,7 @@
 
 A :class:`PlotFamily` per env family draws one case's optimum and one flown case on a
 trajectory axis and a control axis; :data:`PLOT_FAMILIES` holds them by ``scenario.family``
-(``planar`` and ``pinpoint``: :mod:`guidance.families.planar`, :mod:`guidance.families.
-pinpoint`).
+(``planar`` and ``pinpoint``: :mod:`.planar`, :mod:`.pinpoint`).
 """
 
 from __future__ import annotations
@@ -42,8 +41,8 @@ class PlotFamily(ABC):
 #: the evaluation plots of each env family, by ``scenario.family``
 PLOT_FAMILIES: FamilyRegistry[PlotFamily] = FamilyRegistry(
     "plot", entry_point_group="lunar_env.plot_families")
-PLOT_FAMILIES.register("planar", "guidance.families.planar:PlanarPlots")
-PLOT_FAMILIES.register("pinpoint", "guidance.families.pinpoint:PinpointPlots")
+PLOT_FAMILIES.register("planar", "guidance.evaluation.plots.planar:PlanarPlots")
+PLOT_FAMILIES.register("pinpoint", "guidance.evaluation.plots.pinpoint:PinpointPlots")
 
 
 def plot_comparison(report: dict[str, Any], path: str | Path) -> Path:
