@@ -311,7 +311,8 @@ class ResultStore:
                           if old.get(k) != self.identity.get(k))
             if diff:
                 raise StoreIdentityError(
-                    f"{self.directory} holds results of another configuration (differs in "
+                    f"{self.directory} holds results of another study, made with other "
+                    "settings (differs in "
                     + "; ".join(f"{k}: stored {old.get(k)!r} vs {self.identity.get(k)!r}"
                                 for k in diff)
                     + "); use another output directory or delete it")

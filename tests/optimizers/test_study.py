@@ -159,6 +159,6 @@ def test_cli_refuses_another_studys_directory_and_a_lost_identity(tmp_path, caps
         assert len(err) >= 1 and "Traceback" not in "".join(err)
         line = err[-1]
         assert line.startswith(f"python -m optimizers.study: error: --out {out}:")
-        assert ("holds results of another configuration" in line if damage == "other settings"
+        assert ("holds results of another study" in line if damage == "other settings"
                 else "identity.json is missing" in line)
     assert len(list((out / "results").glob("*.json"))) == 1
