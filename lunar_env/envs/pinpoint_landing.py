@@ -159,6 +159,7 @@ class PinpointTask(LandingTask):
     Arguments: the env's (see the Arguments section of :class:`LunarPinpointLandingEnv`)."""
 
     has_target = True
+    stop_name = "the terminal gate"
     model = integ.MOON3D
 
     def __init__(self, scenario: str | PinpointScenario = "peng2012", dt_s: float = 1.0,

@@ -133,6 +133,7 @@ class PlanarTask(LandingTask):
     objects). Arguments: the env's (see the Arguments table of :class:`LunarSoftLandingEnv`)."""
 
     has_target = False
+    stop_name = "the surface"
     n_axes = 2
     model = integ.PLANAR
 

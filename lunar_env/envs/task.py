@@ -186,6 +186,8 @@ class LandingTask(metaclass=_FrozenAfterInit):
     n_axes: int = 3
     charge_propellant_on_failure: bool = False
     gate_range_m: float | None = None
+    #: what the terminal radius ``r_stop_nd`` is, for messages
+    stop_name: str = "the terminal radius"
     r_stop_nd: float
     action_space: spaces.Box
     observation_space: spaces.Box
@@ -367,8 +369,8 @@ class LandingTask(metaclass=_FrozenAfterInit):
         Every start is checked the same way, pinned or drawn from the dispersion:
 
         - n_state finite numbers;
-        - the distance from the body's centre above the terminal radius ``r_stop_nd`` (the
-          surface, or the gate sphere);
+        - the distance from the body's centre above the terminal radius ``r_stop_nd``
+          (:attr:`stop_name`: the surface, or the gate sphere);
         - the mass above the dry mass and at most the full tank: the vehicle's wet mass plus
           the dispersion's largest mass offset (:meth:`full_mass_nd`);
         - the speed relative to the surface below the escape speed at that distance
@@ -387,7 +389,7 @@ class LandingTask(metaclass=_FrozenAfterInit):
         if not r > self.r_stop_nd:
             raise ValueError(
                 f"{source} = {shown} starts at distance {self._length(r, nd)} from the "
-                f"centre, at or below the terminal radius; allowed: above "
+                f"centre, not above {self.stop_name}; allowed: above "
                 f"{self._length(self.r_stop_nd, nd)}")
         m = float(y[-1])
         full = self.full_mass_nd()

@@ -264,7 +264,7 @@ def test_the_pinned_start_that_gave_nan_observations_is_refused():
 @pytest.mark.parametrize("bad, match", [
     ("mass_high", r"has mass .*allowed: above the dry mass .* at most the full tank"),
     ("mass_dry", r"has mass .*allowed: above the dry mass"),
-    ("below", r"at or below the terminal radius; allowed: above"),
+    ("below", r"not above the (surface|terminal gate); allowed: above"),
     ("escape", r"has speed .* m/s relative to the surface; allowed: below the escape speed"),
     ("nan", r"must be \d finite numbers|contains NaN or inf"),
 ])
