@@ -288,6 +288,27 @@ class ResultStore:
         self._open_identity()
         self._dir.mkdir(parents=True, exist_ok=True)
 
+    @classmethod
+    def existing(cls, directory: str | os.PathLike, fmt: str = "json", **kwargs) -> ResultStore:
+        """Open the store in ``directory`` under the identity it records (to read a store made
+        elsewhere, e.g. a finished campaign's, without restating its settings); ``kwargs`` as
+        the constructor's (``validate``, ``schema``).
+
+        Raises
+        ------
+        StoreIdentityError
+            ``directory`` has no readable ``identity.json``.
+        """
+        ident_file = Path(directory) / "identity.json"
+        try:
+            identity = json.loads(ident_file.read_bytes())
+            if not isinstance(identity, dict):
+                raise ValueError("not a JSON object")
+        except (OSError, ValueError) as exc:
+            raise StoreIdentityError(f"{directory} is not a result store with a readable "
+                                     f"identity.json ({type(exc).__name__}: {exc})") from None
+        return cls(directory, identity, fmt, **kwargs)
+
     # -- identity -------------------------------------------------------------------------------
     @property
     def identity_file(self) -> Path:

@@ -225,6 +225,14 @@ def test_a_store_with_results_but_no_identity_refuses_to_open(tmp_path, damage):
     assert not ident.exists() or ident.read_text() == '{"seed": '  # nothing adopted
 
 
+def test_an_existing_store_opens_under_its_recorded_identity(tmp_path):
+    ResultStore(tmp_path, {"seed": 5}).put(_key(0), {"x": 1})
+    reader = ResultStore.existing(tmp_path)
+    assert reader.identity == {"seed": 5} and reader.get(_key(0)) == {"x": 1}
+    with pytest.raises(StoreIdentityError, match="no.*readable identity.json|not a result"):
+        ResultStore.existing(tmp_path / "nothing")
+
+
 def test_an_empty_store_with_an_unreadable_identity_starts_afresh(tmp_path):
     (tmp_path / "results").mkdir()
     (tmp_path / "results" / "x.json.damaged").write_text("{")
