@@ -85,7 +85,7 @@ def run(n: int, fmt: str) -> dict:
         plain_dir = Path(d) / "plain"
         plain_dir.mkdir()
         ext = {"json": ".json", "pickle": ".pkl", "npz": ".npz"}[fmt]
-        # alternate the two in blocks of 50, so machine load hits both alike
+        # alternate the two in blocks of 50, so both meet the same conditions
         t = {"plain_write": 0.0, "verified_write": 0.0, "plain_read": 0.0, "verified_read": 0.0,
              "encode_plain": 0.0, "encode_verified": 0.0}
         for lo in range(0, n, 50):
