@@ -144,10 +144,82 @@ def test_optimizers_study_usage_errors(argv, expected, capsys):
 @pytest.mark.parametrize("argv, expected", [
     ([], "the following arguments are required: scenario"),
     (["nope"], "invalid choice: 'nope'"),
-    (["zhu2007", "--runs", "0"], "--runs and --generations must be >= 1"),
+    (["zhu2007", "--runs", "0"], "argument --runs: 0 is out of range; allowed: 1 to 100000"),
 ])
 def test_optimizers_reproduce_usage_errors(argv, expected, capsys):
     from optimizers.reproduce.__main__ import main
 
     line = _usage_error(main, argv, capsys)
     assert ": error:" in line and expected in line
+
+
+_UNWRITABLE = "/dev/null/out.json"  # under a file: no process can create it (root included)
+
+# (command, argv, text the one line must contain): every bad argument names its option and what
+# is allowed; checked before any work (negative and huge counts, seeds outside [0, 2**63 - 1],
+# output files that are directories or cannot be created, malformed Ray addresses)
+_BAD_ARGUMENTS = [
+    ("study", ["--runs", "-3"], "argument --runs: -3 is out of range; allowed: 1 to 100000"),
+    ("study", ["--runs", "10000000000000"], "argument --runs: 10000000000000 is out of range"),
+    ("study", ["--runs", "many"], "argument --runs: 'many' is not an integer"),
+    ("study", ["--seed", "-1"], "argument --seed: -1 is out of range; allowed: 0 to 2**63 - 1"),
+    ("study", ["--seed", str(2**70)], f"argument --seed: {2**70} is out of range"),
+    ("study", ["--workers", "-1"], "argument --workers: -1 is out of range; allowed: 0 to"),
+    ("study", ["--json", "{tmp}"], "argument --json: {tmp} is a directory; give a file name"),
+    ("study", ["--json", _UNWRITABLE], "argument --json: /dev/null/out.json cannot be "
+                                       "created: /dev/null is a file"),
+    ("study", ["--address", "garbage"], "argument --address: 'garbage' is not a Ray address; "
+                                        "allowed: 'auto', 'local', HOST:PORT"),
+    ("study", ["--address", "host:99999"], "argument --address: 'host:99999' is not a Ray"),
+    ("study", ["--out", "{file}"], "--out {file}:"),
+    ("zhu2007", ["--runs", "-1"], "argument --runs: -1 is out of range; allowed: 1 to 100000"),
+    ("zhu2007", ["--runs", str(2**70)], "argument --runs"),
+    ("zhu2007", ["--seed", "-1"], "argument --seed: -1 is out of range"),
+    ("zhu2007", ["--seed", str(2**70)], "argument --seed"),
+    ("zhu2007", ["--generations", "0"], "argument --generations: 0 is out of range"),
+    ("zhu2007", ["--json", "{tmp}"], "argument --json: {tmp} is a directory"),
+    ("zhu2007", ["--json", _UNWRITABLE], "argument --json: /dev/null/out.json cannot be"),
+    ("peng2012", ["--guesses", "-2"], "argument --guesses: -2 is out of range; allowed: 0 to"),
+    ("peng2012", ["--seed", str(2**70)], "argument --seed"),
+    ("peng2012", ["--json", "{tmp}"], "argument --json: {tmp} is a directory"),
+    ("peng_mars", ["--runs", "-1"], "argument --runs"),
+    ("peng_mars", ["--starts", "-1"], "argument --starts"),
+    ("peng_mars", ["--seed", "-1"], "argument --seed"),
+    ("peng_mars", ["--json", _UNWRITABLE], "argument --json"),
+    ("wang2001", ["--seeds", "0"], "argument --seeds: 0 is out of range"),
+    ("wang2001", ["--n-scan", "2"], "argument --n-scan: 2 is out of range; allowed: 3 to"),
+    ("wang2001", ["--json", "{tmp}"], "argument --json"),
+    ("wang2003", ["--runs", "-1"], "argument --runs: -1 is out of range; allowed: 0 to"),
+    ("wang2003", ["--seed", str(2**70)], "argument --seed"),
+    ("wang2003", ["--json", _UNWRITABLE], "argument --json"),
+    ("reproduce", ["nope"], "invalid choice: 'nope'"),
+]
+
+
+@pytest.mark.parametrize("command, argv, expected", _BAD_ARGUMENTS,
+                         ids=[f"{c}-{' '.join(a)[:40]}" for c, a, _ in _BAD_ARGUMENTS])
+def test_optimizer_commands_refuse_bad_arguments_in_one_line(command, argv, expected, tmp_path,
+                                                             capsys):
+    """``python -m optimizers.study`` and ``python -m optimizers.reproduce``: one
+    argparse-style line naming the option and what is allowed, exit 2, no traceback, nothing
+    written."""
+    from optimizers.reproduce.__main__ import main as reproduce
+    from optimizers.study.__main__ import main as study
+
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    fill = {"{tmp}": str(tmp_path), "{file}": str(a_file)}
+    argv = [fill.get(a, a) for a in argv]
+    for k, v in fill.items():
+        expected = expected.replace(k, v)
+    if command == "study":
+        line = _usage_error(study, ["ea", "zhu2007", "--out", str(tmp_path / "out"), *argv],
+                            capsys)
+        assert line.startswith("python -m optimizers.study: error:")
+        assert not (tmp_path / "out" / "results").exists()
+    elif command == "reproduce":
+        line = _usage_error(reproduce, argv, capsys)
+    else:
+        line = _usage_error(reproduce, [command, *argv], capsys)
+        assert line.startswith(f"python -m optimizers.reproduce {command}: error:")
+    assert expected in line, line

@@ -12,6 +12,7 @@ same arithmetic by construction.
 from __future__ import annotations
 
 import math
+import numbers
 from typing import Any
 
 import gymnasium as gym
@@ -35,13 +36,35 @@ def validate_actions(action, shape: tuple[int, ...]) -> np.ndarray:
     one-channel env, ``(N,)`` for ``(N, 1)``); any other shape is refused even when the number
     of elements matches: ``(2, 4)`` for four landers with two channels each would mix the
     landers' actions up. Finite out-of-range values are *not* an error; the task clips them to
-    [-1, 1].
+    [-1, 1]. ``None``, complex numbers, strings and other non-numbers are refused by name (not
+    converted: a complex action would lose its imaginary part, ``None`` would become NaN).
     """
-    try:
-        a = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"action {action!r} is not an array of numbers of shape {shape}"
-                         ) from None
+    if action is None:
+        raise ValueError(f"action is None; expected an array of real numbers of shape {shape}")
+    raw = action if type(action) is np.ndarray else None
+    if raw is None:
+        try:
+            raw = np.asarray(action)
+        except (TypeError, ValueError):  # ragged nested sequences
+            raise ValueError(f"action {action!r} is not an array of numbers of shape {shape}"
+                             ) from None
+    kind = raw.dtype.kind
+    if kind == "c":
+        raise ValueError(f"action {action!r} is complex; actions are real numbers (shape "
+                         f"{shape})")
+    if kind not in "fiub":
+        what = {"U": "text", "S": "bytes", "O": "Python objects"}.get(kind, f"dtype {raw.dtype}")
+        items = raw.reshape(-1).tolist() if kind == "O" else []
+        if kind == "O" and all(isinstance(v, numbers.Real) and not isinstance(v, bool)
+                               for v in items):
+            raw = raw.astype(np.float64)  # a list mixing ints and numpy floats, say
+        elif any(v is None for v in items):
+            raise ValueError(f"action {action!r} contains None; expected an array of real "
+                             f"numbers of shape {shape}")
+        else:
+            raise ValueError(f"action {action!r} holds {what}, not real numbers; expected an "
+                             f"array of real numbers of shape {shape}")
+    a = raw.astype(np.float64, copy=False)
     if a.shape != shape:
         squeeze = tuple(d for d in a.shape if d != 1)
         if squeeze == tuple(d for d in shape if d != 1):

@@ -159,6 +159,7 @@ class PinpointTask(LandingTask):
     Arguments: the env's (see the Arguments section of :class:`LunarPinpointLandingEnv`)."""
 
     has_target = True
+    stop_name = "the terminal gate"
     model = integ.MOON3D
 
     def __init__(self, scenario: str | PinpointScenario = "peng2012", dt_s: float = 1.0,
@@ -365,25 +366,26 @@ class PinpointTask(LandingTask):
         sc = self.scenario
         s = self.scaling
         options = options or {}
+        given_si = None  # the row as given, for the message, where the user gave SI
         if options.get("state_nd") is not None:
             y = np.asarray(options["state_nd"], dtype=np.float64).reshape(-1)
+            source = "options['state_nd'] (x, y, z, vx, vy, vz, m)"
         elif options.get("state_si") is not None:
             si = np.asarray(options["state_si"], dtype=np.float64).reshape(-1)
             if si.shape != (7,):
-                raise ValueError(f"state_si {si!r} must be (x, y, z m, vx, vy, vz m/s, m kg)")
+                raise ValueError(f"options['state_si'] has {si.size} numbers; expected 7: "
+                                 "(x, y, z m, vx, vy, vz m/s, m kg)")
             y = np.concatenate([s.length_nd(si[0:3]), s.velocity_nd(si[3:6]),
                                 [s.mass_nd(si[6])]])
+            source = "options['state_si'] (x, y, z m, vx, vy, vz m/s, m kg)"
+            given_si = si
         elif options.get("nominal"):
             y = sc.state_nd(scaling=s)
+            source = "the nominal start (x, y, z, vx, vy, vz, m)"
         else:
             y = sc.state_nd(sc.sample_initial(rng, 1)[0], scaling=s)
-        if y.shape != (7,) or not np.isfinite(y).all():
-            raise ValueError(f"initial state {y!r} must be 7 finite numbers (x, y, z, vx, vy, "
-                             "vz, m)")
-        if not (np.linalg.norm(y[0:3]) > self.r_stop_nd and y[6] > self.dry_mass_nd):
-            raise ValueError(f"initial state {y!r} must start above the terminal gate "
-                             f"(r > {self.r_stop_nd}) with fuel (m > {self.dry_mass_nd})")
-        return y
+            source = "the dispersed start (x, y, z, vx, vy, vz, m)"
+        return self.check_start(y, source, given_si)
 
     # -- rendering ------------------------------------------------------------------------------
     def track(self, ys: np.ndarray) -> dict:
@@ -471,7 +473,12 @@ _DOC = """
 
     The scenario's dispersion (altitude ±500 m, speed ±5 m/s, mass ±10 kg, longitude and
     latitude ±0.05°). ``options={"nominal": True}``, ``{"state_nd": 7 normalised numbers}`` or
-    ``{"state_si": (x, y, z m, vx, vy, vz m/s, m kg)}`` (Moon-fixed) pin the start.
+    ``{"state_si": (x, y, z m, vx, vy, vz m/s, m kg)}`` (Moon-fixed) pin the start. Every
+    start, pinned or drawn, must be finite, above the terminal gate's radius, with a mass above
+    the dry mass and at most the full tank (the wet mass plus the dispersion's largest mass
+    offset), and bound to the Moon (speed relative to the surface below the escape speed at its
+    radius); any other is refused with a ValueError naming the option, the value and the
+    allowed range.
 
     ## Episode End
 

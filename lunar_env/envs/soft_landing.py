@@ -133,6 +133,7 @@ class PlanarTask(LandingTask):
     objects). Arguments: the env's (see the Arguments table of :class:`LunarSoftLandingEnv`)."""
 
     has_target = False
+    stop_name = "the surface"
     n_axes = 2
     model = integ.PLANAR
 
@@ -282,21 +283,25 @@ class PlanarTask(LandingTask):
         """Normalised (r, vr, θ, ω, m) (see Starting State in the env's manual)."""
         sc = self.scenario
         options = options or {}
+        given_si = None  # the row as given, for the message, where the user gave SI
         if options.get("state_nd") is not None:
             y = np.asarray(options["state_nd"], dtype=np.float64).reshape(-1)
+            source = "options['state_nd'] (r, vr, θ, ω, m)"
         elif options.get("state_si") is not None:
-            y = sc.si_to_nd(np.asarray(options["state_si"], dtype=np.float64).reshape(-1),
-                            self.scaling)
+            si = np.asarray(options["state_si"], dtype=np.float64).reshape(-1)
+            if si.shape != (5,):
+                raise ValueError(f"options['state_si'] has {si.size} numbers; expected 5: "
+                                 "(r m, vr m/s, θ rad, v_t m/s, m kg)")
+            y = sc.si_to_nd(si, self.scaling)
+            source = "options['state_si'] (r m, vr m/s, θ rad, v_t m/s, m kg)"
+            given_si = si
         elif options.get("nominal"):
             y = sc.state_nd(scaling=self.scaling)
+            source = "the nominal start (r, vr, θ, ω, m)"
         else:
             y = sc.si_to_nd(sc.sample_initial(rng, 1)[0], self.scaling)
-        if y.shape != (5,) or not np.isfinite(y).all():
-            raise ValueError(f"initial state {y!r} must be 5 finite numbers (r, vr, θ, ω, m)")
-        if not (y[0] > self.r_stop_nd and y[4] > self.dry_mass_nd):
-            raise ValueError(f"initial state {y!r} must start above the surface "
-                             f"(r > {self.r_stop_nd}) with fuel (m > {self.dry_mass_nd})")
-        return y
+            source = "the dispersed start (r, vr, θ, ω, m)"
+        return self.check_start(y, source, given_si)
 
     # -- rendering ------------------------------------------------------------------------------
     def track(self, ys: np.ndarray) -> dict:
@@ -361,7 +366,11 @@ _DOC = """
     ``zhu2007``: altitude ±1 km, horizontal speed ±15 m/s, mass ±20 kg, θ ±0.01 rad).
     ``reset(options={"nominal": True})`` starts from the nominal state,
     ``options={"state_si": (r m, vr m/s, θ rad, v_t m/s, m kg)}`` or
-    ``{"state_nd": (r, vr, θ, ω, m)}`` (normalised) from an exact state.
+    ``{"state_nd": (r, vr, θ, ω, m)}`` (normalised) from an exact state. Every start, pinned or
+    drawn, must be finite, above the surface radius, with a mass above the dry mass and at most
+    the full tank (the wet mass plus the dispersion's largest mass offset: 620 kg for
+    ``zhu2007``), and bound to the Moon (speed below the escape speed at its radius); any
+    other is refused with a ValueError naming the option, the value and the allowed range.
 
     ## Episode End
 

@@ -189,6 +189,8 @@ class LandingTask(metaclass=_FrozenAfterInit):
     n_axes: int = 3
     charge_propellant_on_failure: bool = False
     gate_range_m: float | None = None
+    #: what the terminal radius ``r_stop_nd`` is, for messages
+    stop_name: str = "the terminal radius"
     r_stop_nd: float
     action_space: spaces.Box
     observation_space: spaces.Box
@@ -391,10 +393,77 @@ class LandingTask(metaclass=_FrozenAfterInit):
             If the state is not finite, starts below ``r_stop_nd`` or without propellant.
         """
 
+    def check_start(self, y: np.ndarray, source: str, given_si=None) -> np.ndarray:
+        """``y``, a normalised start (n_state,), if it is one a landing can begin from; else
+        ValueError naming ``source`` (e.g. ``"options['state_nd']"``), the value and the range
+        allowed (normalised and SI; SI only where the user gave the SI row ``given_si``).
+
+        Every start is checked the same way, pinned or drawn from the dispersion:
+
+        - n_state finite numbers;
+        - the distance from the body's centre above the terminal radius ``r_stop_nd``
+          (:attr:`stop_name`: the surface, or the gate sphere);
+        - the mass above the dry mass and at most the full tank: the vehicle's wet mass plus
+          the dispersion's largest mass offset (:meth:`full_mass_nd`);
+        - the speed relative to the surface below the escape speed at that distance
+          (``sqrt(2 μ / r)``): a start bound to the body. (An unbound start is no landing, and
+          its integration is not meaningful: at tens of thousands of times the orbital speed,
+          an RK4 step turns the state into inf and NaN.)
+
+        The mass is the last state component of both models (:mod:`lunar_env.dynamics`).
+        """
+        n = self.model.n_state
+        nd = given_si is None
+        shown = _fmt_state(y if nd else given_si)
+        if y.shape != (n,) or not np.isfinite(y).all():
+            raise ValueError(f"{source} = {shown} must be {n} finite numbers")
+        r = float(self.radius_nd(y[None])[0])
+        if not r > self.r_stop_nd:
+            raise ValueError(
+                f"{source} = {shown} starts at distance {self._length(r, nd)} from the "
+                f"centre, not above {self.stop_name}; allowed: above "
+                f"{self._length(self.r_stop_nd, nd)}")
+        m = float(y[-1])
+        full = self.full_mass_nd()
+        if not self.dry_mass_nd < m <= full:
+            raise ValueError(
+                f"{source} = {shown} has mass {self._mass(m, nd)}; allowed: above the "
+                f"dry mass {self._mass(self.dry_mass_nd, nd)}, at most the full tank "
+                f"{self._mass(full, nd)}")
+        v = float(self.speed_m_s(y[None])[0])
+        v_esc = math.sqrt(2.0 / r) * self.velocity_ref_m_s
+        if not v < v_esc:
+            raise ValueError(
+                f"{source} = {shown} has speed {v:.6g} m/s relative to the surface; "
+                f"allowed: below the escape speed {v_esc:.6g} m/s at its distance (a start "
+                "bound to the body)")
+        return y
+
+    def full_mass_nd(self) -> float:
+        """The heaviest start (normalised mass): the vehicle's wet mass plus the largest mass
+        offset of the scenario's dispersion (if positive)."""
+        extra = max(0.0, float(self.scenario.dispersion.mass_kg[1]))
+        return float(self.scaling.mass_nd(self.scenario.vehicle.mass_kg + extra))
+
+    def _length(self, r_nd: float, nd: bool) -> str:
+        si = f"{r_nd * self.length_ref_m:.9g} m"
+        return f"{r_nd:.9g} (normalised; {si})" if nd else si
+
+    def _mass(self, m_nd: float, nd: bool) -> str:
+        si = f"{m_nd * self.mass_ref_kg:.6g} kg"
+        return f"{m_nd:.9g} (normalised; {si})" if nd else si
+
     @abc.abstractmethod
     def track(self, ys: np.ndarray) -> dict:
         """What the renderer draws of states ``ys`` (T, n_state): at least ``downrange_km``
         and ``altitude_km`` (T,)."""
+
+
+def _fmt_state(y) -> str:
+    """A state row for an error message (at most 8 numbers, 7 significant digits)."""
+    y = np.asarray(y).reshape(-1)
+    items = ", ".join(f"{v:.7g}" for v in y[:8]) + (", ..." if y.size > 8 else "")
+    return f"[{items}]"
 
 
 def box(low, high) -> spaces.Box:

@@ -33,29 +33,31 @@ Faults. A worker process that dies in the middle of a task (killed, out of memor
   are resubmitted, at most ``max_retries`` times in a row without progress.
 
 Either way the study completes with every task's result stored exactly once (tested on a real
-local Ray cluster in ``tests/test_executor.py``).
+local Ray cluster in ``tests/optimizers/test_executor.py``).
+
+Verified results. The :class:`~optimizers.common.store.ResultStore` (re-exported here) checks
+every result it reads (its key, the store's identity, a checksum, the caller's schema) and
+moves a result that fails aside and runs its task again. One process writes a store's
+directory at a time (:class:`~optimizers.common.lock.DirectoryLock`), and an interrupted
+command stops its workers and keeps what is stored
+(:func:`~optimizers.common.cli.clean_interrupts`).
 """
 
 from __future__ import annotations
 
-import json
 import math
 import os
-import pickle
 import re
 import time
-import zipfile
-import zlib
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-from .checkpoint import atomic_write_bytes
+from .store import MISSING, ResultSchema, ResultStore
 
 __all__ = ["TaskKey", "Task", "Executor", "LocalExecutor", "RayExecutor", "ResultStore",
-           "run_chunks",
+           "ResultSchema", "run_chunks",
            "get_executor", "run_tasks", "check_importable", "RAY_ADDRESS_ENV"]
 
 RAY_ADDRESS_ENV = "RAY_ADDRESS"
@@ -158,6 +160,11 @@ class Executor(ABC):
     def close(self) -> None:  # noqa: B027 (an executor without resources needs no close)
         """Release the workers."""
 
+    def terminate(self) -> None:
+        """Stop now, without waiting for the tasks in flight (an interrupt); default
+        :meth:`close`."""
+        self.close()
+
     def describe(self) -> str:
         return f"{self.kind} ({self.n_workers} workers)"
 
@@ -199,6 +206,9 @@ class LocalExecutor(Executor):
         self.n_workers = int(n)
         self.max_retries = int(max_retries)
         self._pool = None
+        # worker processes of pools shut down without waiting (after an exception): they may
+        # still be finishing a task; terminate() stops them too
+        self._released: list = []
         self.n_pool_restarts = 0
 
     def describe(self) -> str:
@@ -209,12 +219,9 @@ class LocalExecutor(Executor):
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
-        from .processes import exit_with_parent
-
-        # workers end with this process, even after a SIGKILL (issue 18: no orphans)
         return ProcessPoolExecutor(max_workers=self.n_workers,
                                    mp_context=mp.get_context("spawn"),
-                                   initializer=exit_with_parent, initargs=(os.getpid(),))
+                                   initializer=_init_worker, initargs=(os.getpid(),))
 
     def imap_unordered(self, tasks: Iterable[Task]) -> Iterator[tuple[Task, Any]]:
         tasks = list(tasks)
@@ -255,8 +262,10 @@ class LocalExecutor(Executor):
                                 yield t, fut.result()
                         break
             except BaseException:
-                for f in futs:
-                    f.cancel()
+                # the futures not started are cancelled by the pool's own thread (shutdown's
+                # cancel_futures): cancelling them here as well races with that thread when the
+                # workers die at the same time (a SIGTERM to the process group), and Python
+                # 3.11's pool then fails on the cancelled futures
                 self._shutdown(wait=False)
                 raise
             if broken:
@@ -273,11 +282,63 @@ class LocalExecutor(Executor):
 
     def _shutdown(self, wait: bool = True) -> None:
         if self._pool is not None:
+            if not wait:  # the pool forgets its processes on shutdown: keep them
+                self._released.append((_workers(self._pool),
+                                       getattr(self._pool, "_executor_manager_thread", None)))
             self._pool.shutdown(wait=wait, cancel_futures=True)
             self._pool = None
 
     def close(self) -> None:
         self._shutdown(wait=True)
+        self._released = []
+
+    def terminate(self) -> None:
+        """Stop now: kill the worker processes (the tasks in flight are lost; nothing they
+        would have returned is stored) and release the pool. The executor stays usable: the
+        next :meth:`imap_unordered` starts a new pool."""
+        pool, self._pool = self._pool, None
+        released, self._released = self._released, []
+        procs = [p for ps, _ in released for p in ps] + _workers(pool)
+        for p in procs:
+            try:
+                p.kill()
+            except (OSError, ValueError, AttributeError):  # already gone
+                pass
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+        # the pools' own threads end once their workers are gone; wait for them here, so the
+        # interpreter's exit does not wake a thread that is closing its pipe
+        for _, thread in released:
+            if thread is not None:
+                thread.join(timeout=10.0)
+        for p in procs:
+            try:
+                p.join(timeout=5.0)
+            except (OSError, ValueError, AttributeError, AssertionError):
+                pass
+
+
+def _workers(pool) -> list:
+    """The worker processes of a ``ProcessPoolExecutor`` (its ``_processes``, there since
+    Python 3.2; None once the pool is shut down)."""
+    if pool is None:
+        return []
+    return list((getattr(pool, "_processes", None) or {}).values())
+
+
+def _init_worker(parent_pid: int) -> None:
+    """Initializer of a local pool's workers: end with the parent, even after a SIGKILL of
+    the parent (:func:`~optimizers.common.processes.exit_with_parent`: no orphans), and ignore
+    SIGINT: a Ctrl-C at a terminal reaches every process of the foreground group, and the
+    parent decides what happens (:func:`optimizers.common.cli.clean_interrupts` stops the
+    workers and keeps what is stored). A task that wants Ctrl-C itself sets its own
+    handler."""
+    import signal
+
+    from .processes import exit_with_parent
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    exit_with_parent(parent_pid)
 
 
 class RayExecutor(Executor):
@@ -364,6 +425,10 @@ class RayExecutor(Executor):
                 except Exception:  # noqa: BLE001 (best effort on the way out)
                     pass
 
+    def terminate(self) -> None:
+        """Stop now (cancel what is in flight, disconnect): as :meth:`close`."""
+        self.close()
+
     def close(self) -> None:
         if self._owns and self._ray.is_initialized():
             self._ray.shutdown()
@@ -388,161 +453,7 @@ def get_executor(address: str | None = None, n_workers: int | None = None, **kwa
 
 
 # ----------------------------------------------------------------------------- results
-
-
-class ResultStore:
-    """Results on disk, one atomically written file per :class:`TaskKey`.
-
-    ``<directory>/results/<key.filename>.json`` (JSON values), ``.pkl`` (anything picklable,
-    ``fmt="pickle"``) or ``.npz`` (dicts of numpy arrays, ``fmt="npz"``: compressed, read with
-    ``allow_pickle=False``); ``<directory>/identity.json`` records what the results belong to,
-    and a store opened with another identity is refused (results of other settings never mix).
-
-    Damaged files. :meth:`get` raises a ValueError naming the file of a damaged (truncated,
-    undecodable, or refused by ``validate``) entry. ``key in store`` (and :meth:`readable`)
-    is true only for an entry that reads: a damaged file is moved aside to ``<file>.damaged``
-    with a printed message naming it, so :func:`run_tasks` runs its task again.
-
-    Parameters
-    ----------
-    directory : path
-    identity : dict, optional
-        JSON-serialisable description of the study (algorithm, settings, problem fingerprint).
-    fmt : {"json", "pickle", "npz"}
-    validate : callable, optional
-        ``validate(value)`` raises ValueError if a value read back is incomplete (e.g. lacks a
-        required array); such an entry counts as damaged.
-
-    Raises
-    ------
-    ValueError
-        The directory holds a store of another identity (the message names the differing keys).
-    """
-
-    _EXT = {"json": ".json", "pickle": ".pkl", "npz": ".npz"}
-
-    def __init__(self, directory: str | os.PathLike, identity: dict | None = None,
-                 fmt: str = "json", *, validate: Callable[[Any], None] | None = None) -> None:
-        if fmt not in self._EXT:
-            raise ValueError(f"fmt = {fmt!r}; use 'json', 'pickle' or 'npz'")
-        self.directory = Path(directory)
-        self.fmt = fmt
-        self.validate = validate
-        self._dir = self.directory / "results"
-        self._dir.mkdir(parents=True, exist_ok=True)
-        ident_file = self.directory / "identity.json"
-        if identity is not None:
-            ident = json.loads(json.dumps(identity, default=str))
-            if ident_file.exists():
-                old = json.loads(ident_file.read_text())
-                diff = sorted(k for k in set(old) | set(ident) if old.get(k) != ident.get(k))
-                if diff:
-                    raise ValueError(
-                        f"{self.directory} holds results of another study, made with other "
-                        "settings (differs in "
-                        + "; ".join(f"{k}: stored {old.get(k)!r} vs {ident.get(k)!r}"
-                                    for k in diff)
-                        + "); use another output directory or delete it")
-            else:
-                atomic_write_bytes(ident_file, json.dumps(ident, indent=1).encode())
-
-    @property
-    def _ext(self) -> str:
-        return self._EXT[self.fmt]
-
-    def path(self, key: TaskKey) -> Path:
-        return self._dir / (key.filename + self._ext)
-
-    def __contains__(self, key: TaskKey) -> bool:
-        return self.readable(key)
-
-    def readable(self, key: TaskKey) -> bool:
-        """True if ``key`` is stored and reads; a damaged file is moved aside (``.damaged``)
-        with a message naming it, and False returned (its task runs again)."""
-        return self._load(key) is not _MISSING
-
-    def _load(self, key: TaskKey) -> Any:
-        """The stored value, or ``_MISSING`` (absent, or damaged and moved aside)."""
-        path = self.path(key)
-        if not path.exists():
-            return _MISSING
-        try:
-            return self.get(key)
-        except ValueError as exc:
-            os.replace(path, path.with_name(path.name + ".damaged"))
-            print(f"{exc}: moved to {path.name}.damaged; its task runs again", flush=True)
-            return _MISSING
-
-    def put(self, key: TaskKey, value: Any) -> Path:
-        """Store ``value`` under ``key`` atomically (JSON: NaN/inf allowed, as Python writes;
-        npz: a dict of arrays)."""
-        if self.fmt == "json":
-            data = json.dumps(value, default=_json_default).encode()
-        elif self.fmt == "pickle":
-            data = pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
-        else:
-            import io
-
-            import numpy as np
-
-            if not isinstance(value, dict):
-                raise TypeError(f"an npz store holds dicts of arrays; got {type(value).__name__}"
-                                f" for {key}")
-            buf = io.BytesIO()
-            np.savez_compressed(buf, **value)
-            data = buf.getvalue()
-        return atomic_write_bytes(self.path(key), data)
-
-    def get(self, key: TaskKey) -> Any:
-        """The value stored under ``key``.
-
-        Raises
-        ------
-        FileNotFoundError
-            Nothing is stored under ``key``.
-        ValueError
-            The file is damaged (the message names it).
-        """
-        path = self.path(key)
-        raw = path.read_bytes()
-        try:
-            if self.fmt == "json":
-                value = json.loads(raw)
-            elif self.fmt == "pickle":
-                value = pickle.loads(raw)
-            else:
-                import io
-
-                import numpy as np
-
-                with np.load(io.BytesIO(raw), allow_pickle=False) as z:
-                    value = {f: z[f] for f in z.files}
-            if self.validate is not None:
-                self.validate(value)
-        except (ValueError, OSError, EOFError, KeyError, IndexError, TypeError, AttributeError,
-                pickle.UnpicklingError, zipfile.BadZipFile, zlib.error) as exc:
-            raise ValueError(f"stored result {path} is damaged ({type(exc).__name__}: {exc})"
-                             ) from None
-        return value
-
-    def keys(self) -> list[str]:
-        """File stems of the stored results (sorted)."""
-        return sorted(p.name[:-len(self._ext)] for p in self._dir.glob("*" + self._ext))
-
-
-_MISSING = object()
-
-
-def _json_default(o):
-    import numpy as np
-
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, Path):
-        return str(o)
-    raise TypeError(f"{type(o).__name__} is not JSON serialisable")
+# ResultStore lives in optimizers.common.store (verified results on disk); re-exported here.
 
 
 @dataclass
@@ -610,8 +521,8 @@ def run_tasks(tasks: Iterable[Task], executor: Executor | None = None,
     results: dict[TaskKey, Any] = {}
     todo = []
     for t in tasks:
-        stored = _MISSING if store is None else store._load(t.key)
-        if stored is not _MISSING:
+        stored = MISSING if store is None else store.load(t.key)
+        if stored is not MISSING:
             results[t.key] = stored
         elif is_done is not None and is_done(t.key):
             continue

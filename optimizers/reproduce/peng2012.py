@@ -47,6 +47,7 @@ from lunar_env import get_scenario
 from lunar_env.integrators import MOON3D, integrate_reference
 
 from ..certification import certify
+from ..common.cli import count_type, output_file_type, seed_type
 from ..indirect.pinpoint import solve_pinpoint_min_time
 from ..problems.pinpoint import PinpointOCP
 from ..transcription.serial import dense_collocation_check, get_solver, random_guess
@@ -255,20 +256,19 @@ def _alternative_reading(sc) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m optimizers.reproduce peng2012",
                                  description=__doc__.split("\n\n")[0])
-    ap.add_argument("--guesses", type=int, default=None,
+    ap.add_argument("--guesses", type=count_type(0, 10_000), default=None,
                     help="random initial guesses (default 8, as table 2; 1 with --quick)")
     ap.add_argument("--quick", action="store_true", help="CI version (< 60 s)")
-    ap.add_argument("--json", default=None, help="write the results as JSON to this file")
+    ap.add_argument("--json", type=output_file_type, default=None,
+                    help="write the results as JSON to this file")
     ap.add_argument("--out", default=os.path.join("results", "peng2012"),
                     help="directory for the figures")
-    ap.add_argument("--seed", type=int, default=0, help="seed of the random guesses")
+    ap.add_argument("--seed", type=seed_type, default=0, help="seed of the random guesses")
     ap.add_argument("--no-plots", action="store_true")
     ap.add_argument("--no-dense", action="store_true", help="skip the dense-collocation check")
     ap.add_argument("--no-env", action="store_true", help="skip the environment replay")
     args = ap.parse_args(argv)
     n_guesses = args.guesses if args.guesses is not None else (1 if args.quick else 8)
-    if n_guesses < 0:
-        ap.error(f"--guesses {n_guesses} must be >= 0")
     t_total = time.perf_counter()
 
     sc = get_scenario("peng2012")

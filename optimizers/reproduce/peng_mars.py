@@ -42,6 +42,7 @@ import numpy as np
 
 from lunar_env import get_scenario
 
+from ..common.cli import count_type, output_file_type, seed_type
 from ..common.result import OptimResult
 from ..evolutionary.aga import AGA
 from ..evolutionary.gaia import AIA, GAIA, PENALTY_READINGS
@@ -190,19 +191,22 @@ def _runs(algo, problem, seeds, label):
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m optimizers.reproduce peng_mars",
                                  description=__doc__.split("\n\n")[0])
-    ap.add_argument("--runs", type=int, default=None, help="runs per algorithm (10; quick 2)")
+    ap.add_argument("--runs", type=count_type(1, 100_000), default=None,
+                    help="runs per algorithm (10; quick 2)")
     ap.add_argument("--quick", action="store_true",
                     help="2 runs of reduced GAIA/AGA (population 30, 30 generations, 5 clones),"
                          " 3 SLSQP starts, no penalty-reading study (smoke test)")
-    ap.add_argument("--json", default=None, help="write the results as JSON to this file")
+    ap.add_argument("--json", type=output_file_type, default=None,
+                    help="write the results as JSON to this file")
     ap.add_argument("--out", default=os.path.join("results", "peng_mars"), help="plot directory")
-    ap.add_argument("--seed", type=int, default=0, help="master seed")
-    ap.add_argument("--generations", type=int, default=None, help="g_max (default 100)")
+    ap.add_argument("--seed", type=seed_type, default=0, help="master seed")
+    ap.add_argument("--generations", type=count_type(1), default=None,
+                    help="g_max (default 100)")
     ap.add_argument("--penalty-reading", choices=PENALTY_READINGS, default="rising",
                     help="reading of the illegible penalty curve (default: rising)")
-    ap.add_argument("--reading-runs", type=int, default=None,
+    ap.add_argument("--reading-runs", type=count_type(0, 100_000), default=None,
                     help="GAIA runs per penalty reading in the reading study (default 5; quick 0)")
-    ap.add_argument("--starts", type=int, default=None,
+    ap.add_argument("--starts", type=count_type(0, 100_000), default=None,
                     help="random SLSQP starts on the parameterisation (default 20; quick 3)")
     ap.add_argument("--no-plots", action="store_true")
     args = ap.parse_args(argv)
@@ -211,8 +215,6 @@ def main(argv: list[str] | None = None) -> int:
     n_gen = args.generations if args.generations is not None else (30 if q else 100)
     n_read = args.reading_runs if args.reading_runs is not None else (0 if q else 5)
     n_starts = args.starts if args.starts is not None else (3 if q else 20)
-    if n_runs < 1 or n_gen < 1 or n_read < 0 or n_starts < 0:
-        ap.error("--runs and --generations must be >= 1; --reading-runs, --starts >= 0")
     size = dict(n_pop=30, n_clones=5) if q else {}
     aga_pop = 30 if q else 100
 

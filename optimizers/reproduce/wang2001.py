@@ -36,6 +36,7 @@ import time
 
 import numpy as np
 
+from ..common.cli import count_type, output_file_type
 from ..evolutionary.ea import EA
 from ..problems.two_impulse import TwoImpulseProblem, certify_global_minimum
 
@@ -286,18 +287,18 @@ def main(argv: list[str] | None = None) -> int:
                                  description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true",
                     help="2 seeds, a 5 001-point scan, 10 generations for the no-stop EA")
-    ap.add_argument("--seeds", type=int, default=None, help="EA runs per row (10)")
-    ap.add_argument("--n-scan", type=int, default=None,
+    ap.add_argument("--seeds", type=count_type(1, 100_000), default=None,
+                    help="EA runs per row (10)")
+    ap.add_argument("--n-scan", type=count_type(3, 100_000_000), default=None,
                     help="points of the certification scan over T (200 001)")
-    ap.add_argument("--json", default=None, help="write the results as JSON to this file")
+    ap.add_argument("--json", type=output_file_type, default=None,
+                    help="write the results as JSON to this file")
     ap.add_argument("--out", default=os.path.join("results", "wang2001"))
     ap.add_argument("--no-plots", action="store_true")
     args = ap.parse_args(argv)
     n_seeds = args.seeds or (2 if args.quick else 10)
     n_scan = args.n_scan or (5_001 if args.quick else 200_001)
     gen_full = 10 if args.quick else 80
-    if n_seeds < 1 or n_scan < 3:
-        ap.error("--seeds must be >= 1 and --n-scan >= 3")
     t_start = time.perf_counter()
     print(f"[004] Wang et al. 2001: {n_seeds} EA seeds per row, certification scan of "
           f"{n_scan} points per branch")

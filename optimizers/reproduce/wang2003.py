@@ -36,6 +36,7 @@ import numpy as np
 from lunar_env import get_scenario
 
 from ..common.checkpoint import atomic_write_bytes
+from ..common.cli import count_type, output_file_type, seed_type
 from ..evolutionary.fga import FGA
 from ..problems.thrust_design import ThrustDesignProblem, scenario_at_thrust
 
@@ -269,21 +270,18 @@ def _fmt(v, nd=3):
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m optimizers.reproduce wang2003",
                                  description=__doc__.split("\n\n")[0])
-    ap.add_argument("--runs", type=int, default=10, help="FGA runs (default 10)")
-    ap.add_argument("--generations", type=int, default=None,
+    ap.add_argument("--runs", type=count_type(0, 100_000), default=10,
+                    help="FGA runs (default 10)")
+    ap.add_argument("--generations", type=count_type(1), default=None,
                     help="FGA generations (default the paper's 10 000; --quick: 300)")
-    ap.add_argument("--seed", type=int, default=0, help="seed of the first run")
+    ap.add_argument("--seed", type=seed_type, default=0, help="seed of the first run")
     ap.add_argument("--quick", action="store_true",
                     help="2 runs × 300 generations, a 6-point curve (CI)")
-    ap.add_argument("--json", default=None)
+    ap.add_argument("--json", type=output_file_type, default=None)
     ap.add_argument("--out", default=os.path.join("results", SCENARIO))
     ap.add_argument("--no-plots", action="store_true")
     args = ap.parse_args(argv)
-    if args.runs < 0:
-        ap.error(f"--runs = {args.runs} must be >= 0")
     n_gen = args.generations or (300 if args.quick else 10_000)
-    if n_gen < 1:
-        ap.error(f"--generations = {n_gen} must be >= 1")
     n_runs = min(args.runs, 2) if args.quick else args.runs
     thrusts = (500.0, 1000.0, 2000.0, 3000.0, 3500.0, 4000.0) if args.quick else CURVE_THRUSTS_N
     sc = get_scenario(SCENARIO)

@@ -28,6 +28,7 @@ import numpy as np
 from lunar_env import get_scenario
 
 from ..certification import certify
+from ..common.cli import count_type, output_file_type, seed_type
 from ..common.result import OptimResult
 from ..evolutionary.asaga import ASAGA
 from ..problems.landing import PlanarLandingProblem
@@ -178,13 +179,15 @@ def _plots(out_dir: str, problem, runs, best_i, pontryagin_sol, units: str = "no
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m optimizers.reproduce zhu2007",
                                  description=__doc__.split("\n\n")[0])
-    ap.add_argument("--runs", type=int, default=None, help="ASAGA runs (default 10; quick 2)")
+    ap.add_argument("--runs", type=count_type(1, 100_000), default=None,
+                    help="ASAGA runs (default 10; quick 2)")
     ap.add_argument("--quick", action="store_true",
                     help="2 runs of 40 generations (smoke test, < 60 s)")
-    ap.add_argument("--json", default=None, help="write the results as JSON to this file")
+    ap.add_argument("--json", type=output_file_type, default=None,
+                    help="write the results as JSON to this file")
     ap.add_argument("--out", default=os.path.join("results", "zhu2007"), help="plot directory")
-    ap.add_argument("--seed", type=int, default=0, help="master seed of the runs")
-    ap.add_argument("--generations", type=int, default=None,
+    ap.add_argument("--seed", type=seed_type, default=0, help="master seed of the runs")
+    ap.add_argument("--generations", type=count_type(1), default=None,
                     help="ASAGA generations (default: the paper's 300; quick 40)")
     ap.add_argument("--fitness-units", choices=("normalised", "si"), default="normalised",
                     help="units of the penalised fitness of eq. (11) (default: normalised)")
@@ -198,8 +201,6 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     n_runs = args.runs if args.runs is not None else (2 if args.quick else 10)
     n_gen = args.generations if args.generations is not None else (40 if args.quick else 300)
-    if n_runs < 1 or n_gen < 1:
-        ap.error("--runs and --generations must be >= 1")
 
     scenario = get_scenario("zhu2007")
     problem = PlanarLandingProblem(scenario, penalty_units=args.fitness_units)

@@ -16,7 +16,11 @@ replay judged by the problem and the fuel gap to the problem's certified optimum
 atomically to ``<out>/results/`` as soon as it finishes. An interrupted study rerun with the
 same command does only the missing runs; a larger ``--runs`` extends it. The study's identity
 (algorithm, settings, problem and its fingerprint, seed) is recorded and another study is
-refused in the same directory.
+refused in the same directory; every stored row is verified when it is read back
+(:class:`~optimizers.common.store.ResultStore`), and one process at a time writes a study
+directory (:class:`~optimizers.common.lock.DirectoryLock`: a second run of the same study
+refuses at once, naming the first one's PID). Ctrl-C or SIGTERM stops the workers, keeps every
+finished run and exits 130 / 143 (:func:`~optimizers.common.cli.clean_interrupts`).
 
 Outputs in ``<out>`` (default ``results/study/<algorithm>_<problem>_seed<s>/``): ``table.md``
 (printed), ``study.json`` (the summary and every row) and ``study.png``.
@@ -34,10 +38,11 @@ import numpy as np
 
 from ..common.checkpoint import save_figure_atomic
 from ..common.executor import Executor, ResultStore, Task, TaskKey, run_tasks
+from ..common.lock import DirectoryLock
 from .registry import ALGORITHMS, PROBLEMS, make_algorithm, make_problem
 
-__all__ = ["run_one", "run_study", "summarise", "markdown_table", "plot_study", "ALGORITHMS",
-           "PROBLEMS"]
+__all__ = ["run_one", "run_study", "study_identity", "default_out", "summarise",
+           "markdown_table", "plot_study", "ALGORITHMS", "PROBLEMS"]
 
 
 @lru_cache(maxsize=8)
@@ -94,6 +99,32 @@ def run_one(algorithm: str, settings: dict, problem: str, problem_kwargs: dict, 
     return row
 
 
+def study_identity(algorithm: str, problem: str, *, seed: int = 0,
+                   settings: dict | None = None, problem_kwargs: dict | None = None,
+                   certify_runs: bool = True) -> dict[str, Any]:
+    """What a study's results belong to (its store's identity): the algorithm and its
+    resolved settings, the problem, its overrides and fingerprint, the seed, certification.
+
+    Raises
+    ------
+    ValueError
+        Unknown names or settings (as :func:`make_algorithm` / :func:`make_problem`).
+    """
+    settings = dict(settings or {})
+    problem_kwargs = dict(problem_kwargs or {})
+    prob = _problem(problem, _items(problem_kwargs))
+    algo = make_algorithm(algorithm, **settings)  # validates the settings before any task
+    algo_settings = algo.settings() if hasattr(algo, "settings") else settings
+    return {"algorithm": algorithm, "settings": algo_settings, "problem": problem,
+            "problem_kwargs": problem_kwargs, "problem_fingerprint": prob.fingerprint(),
+            "seed": int(seed), "certified": bool(certify_runs)}
+
+
+def default_out(algorithm: str, problem: str, seed: int, tag: str = "") -> Path:
+    """``results/study/<algorithm>_<problem>_seed<seed><tag>``."""
+    return Path("results") / "study" / f"{algorithm}_{problem}_seed{int(seed)}{tag}"
+
+
 def run_study(algorithm: str, problem: str, n_runs: int, *, seed: int = 0,
               settings: dict | None = None, problem_kwargs: dict | None = None,
               executor: Executor | None = None, out: str | Path | None = None,
@@ -121,21 +152,29 @@ def run_study(algorithm: str, problem: str, n_runs: int, *, seed: int = 0,
     Raises
     ------
     ValueError
-        Unknown names, ``n_runs < 1``, or a study directory of another study.
+        Unknown names, ``n_runs < 1``, or a study directory of another study
+        (:class:`~optimizers.common.store.StoreIdentityError`).
+    DirectoryBusy
+        Another process is writing to ``out`` (the message names its PID).
     """
     if int(n_runs) < 1:
         raise ValueError(f"n_runs = {n_runs!r} must be >= 1")
     settings = dict(settings or {})
     problem_kwargs = dict(problem_kwargs or {})
+    identity = study_identity(algorithm, problem, seed=seed, settings=settings,
+                              problem_kwargs=problem_kwargs, certify_runs=certify_runs)
+    out = Path(out) if out is not None else default_out(algorithm, problem, seed)
+    with DirectoryLock(out, what="study"):
+        return _run_study(identity, n_runs, settings, problem_kwargs, executor, out,
+                          certify_runs, progress, max_tasks)
+
+
+def _run_study(identity: dict, n_runs: int, settings: dict, problem_kwargs: dict,
+               executor: Executor | None, out: Path, certify_runs: bool, progress: bool,
+               max_tasks: int | None) -> dict[str, Any]:
+    algorithm, problem = identity["algorithm"], identity["problem"]
+    seed, fingerprint = identity["seed"], identity["problem_fingerprint"]
     prob = _problem(problem, _items(problem_kwargs))
-    algo = make_algorithm(algorithm, **settings)  # validates the settings before any task
-    algo_settings = algo.settings() if hasattr(algo, "settings") else settings
-    fingerprint = prob.fingerprint()
-    out = Path(out) if out is not None else Path("results") / "study" / (
-        f"{algorithm}_{problem}_seed{int(seed)}")
-    identity = {"algorithm": algorithm, "settings": algo_settings, "problem": problem,
-                "problem_kwargs": problem_kwargs, "problem_fingerprint": fingerprint,
-                "seed": int(seed), "certified": bool(certify_runs)}
     store = ResultStore(out, identity)
     reference = None
     optimum: dict[str, Any] = {}

@@ -4,12 +4,25 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
-from ..common.cli import user_input_errors
-from . import markdown_table, plot_study, run_study
+from ..common.cli import (
+    MAX_SEED,
+    clean_interrupts,
+    count_type,
+    output_file_type,
+    ray_address_type,
+    seed_type,
+    user_input_errors,
+)
+from ..common.lock import DirectoryBusy, DirectoryLock
+from . import default_out, markdown_table, plot_study, run_study, study_identity
 from .registry import ALGORITHMS, PROBLEMS, make_algorithm, make_problem, quick_settings
+
+#: largest --runs (each run is a task held in memory until the study ends)
+MAX_RUNS = 100_000
+#: largest --workers
+MAX_WORKERS = 1024
 
 
 def _parse_sets(items: list[str], flag: str, parser) -> dict:
@@ -25,6 +38,13 @@ def _parse_sets(items: list[str], flag: str, parser) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Command-line entry point; Ctrl-C or SIGTERM at any point ends it with one line and
+    status 130 / 143 (the runs finished so far stay stored)."""
+    with clean_interrupts():
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m optimizers.study",
         description="N seeded runs of an optimiser on a problem, on a local process pool or a "
@@ -32,21 +52,23 @@ def main(argv: list[str] | None = None) -> int:
                     "plot; resumes after an interruption.")
     p.add_argument("algorithm", nargs="?", help=f"one of {sorted(ALGORITHMS)}")
     p.add_argument("problem", nargs="?", help=f"one of {sorted(PROBLEMS)}")
-    p.add_argument("--runs", type=int, default=None, help="number of seeded runs (default 10; "
-                   "quick 4)")
-    p.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
+    p.add_argument("--runs", type=count_type(1, MAX_RUNS), default=None,
+                   help=f"number of seeded runs, 1 to {MAX_RUNS} (default 10; quick 4)")
+    p.add_argument("--seed", type=seed_type, default=0,
+                   help=f"master seed, 0 to {MAX_SEED} (default 0)")
     p.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                    help="algorithm settings (values parsed as YAML), e.g. n_generations=1000")
     p.add_argument("--problem-set", nargs="*", default=[], metavar="KEY=VALUE",
                    help="problem arguments, e.g. n_steps=200")
-    p.add_argument("--address", default=None,
+    p.add_argument("--address", type=ray_address_type, default=None,
                    help="Ray cluster address ('auto', 'host:port', 'local' for a private "
                         "instance); default: $RAY_ADDRESS, else the local process pool")
-    p.add_argument("--workers", type=int, default=None,
+    p.add_argument("--workers", type=count_type(0, MAX_WORKERS), default=None,
                    help="local pool processes (default: all cores; 0: in this process)")
     p.add_argument("--out", default=None, help="study directory (default "
                    "results/study/<algorithm>_<problem>_seed<seed>)")
-    p.add_argument("--json", default=None, help="also write the summary and rows to this file")
+    p.add_argument("--json", type=output_file_type, default=None,
+                   help="also write the summary and rows to this file")
     p.add_argument("--quick", action="store_true",
                    help="smoke run: 4 runs with the algorithm's quick settings")
     p.add_argument("--no-certify", action="store_true",
@@ -66,8 +88,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.problem not in PROBLEMS:
         p.error(f"unknown problem {args.problem!r}; available: {sorted(PROBLEMS)}")
     n_runs = args.runs if args.runs is not None else (4 if args.quick else 10)
-    if n_runs < 1:
-        p.error(f"--runs {n_runs}: must be >= 1")
     settings = quick_settings(args.algorithm) if args.quick else {}
     settings.update(_parse_sets(args.set, "--set", p))
     problem_kwargs = _parse_sets(args.problem_set, "--problem-set", p)
@@ -77,25 +97,35 @@ def main(argv: list[str] | None = None) -> int:
         make_algorithm(args.algorithm, **settings)
     with user_input_errors(p, errors=(TypeError,), prefix=f"--problem-set {problem_kwargs}"):
         make_problem(args.problem, **problem_kwargs)
-    out = args.out
-    if out is None:
-        tag = "_quick" if args.quick else ""
-        out = Path("results") / "study" / f"{args.algorithm}_{args.problem}_seed{args.seed}{tag}"
+    out = Path(args.out) if args.out is not None else default_out(
+        args.algorithm, args.problem, args.seed, "_quick" if args.quick else "")
+    # one writer per study directory, and a directory of another study refused, before any work
+    with user_input_errors(p, errors=(DirectoryBusy, OSError), prefix=f"--out {out}"):
+        lock = DirectoryLock(out, what="study").acquire()
+    try:
+        with user_input_errors(p, errors=(OSError,), prefix=f"--out {out}"):
+            from ..common.store import ResultStore
 
+            ResultStore(out, study_identity(args.algorithm, args.problem, seed=args.seed,
+                                            settings=settings, problem_kwargs=problem_kwargs,
+                                            certify_runs=not args.no_certify))
+        return _run(p, args, n_runs, settings, problem_kwargs, out)
+    finally:
+        lock.release()
+
+
+def _run(p, args, n_runs: int, settings: dict, problem_kwargs: dict, out: Path) -> int:
     from ..common.executor import get_executor
 
-    with get_executor(args.address, args.workers) as ex:
+    with user_input_errors(p, errors=(ConnectionError, ImportError), prefix="--address"):
+        ex = get_executor(args.address, args.workers)
+    with ex, clean_interrupts(ex):
         print(f"{args.algorithm} on {args.problem}: {n_runs} runs on {ex.describe()}; results "
               f"stream to {out}/results/", flush=True)
-        try:
-            study = run_study(args.algorithm, args.problem, n_runs, seed=args.seed,
-                              settings=settings, problem_kwargs=problem_kwargs, executor=ex,
-                              out=out, certify_runs=not args.no_certify,
-                              progress=not args.no_progress)
-        except KeyboardInterrupt:
-            print(f"\nInterrupted; finished runs are in {out}/results/. Rerun the same command "
-                  "to continue.", file=sys.stderr)
-            return 130
+        study = run_study(args.algorithm, args.problem, n_runs, seed=args.seed,
+                          settings=settings, problem_kwargs=problem_kwargs, executor=ex,
+                          out=out, certify_runs=not args.no_certify,
+                          progress=not args.no_progress)
     table = markdown_table(study)
     out = Path(study["out"])
     (out / "table.md").write_text(table + "\n")

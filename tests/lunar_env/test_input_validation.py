@@ -227,3 +227,140 @@ def test_pinpoint_success_miss_none_is_refused_by_name(env_id):
     planar task only; found by the input fuzz)."""
     with pytest.raises(ValueError, match="success_miss_m"):
         gym.make(env_id, success_miss_m=None)
+
+
+# ------------------------------------------------------------------ pinned starts and actions
+
+#: a pinned start the soft-landing env accepted, after which its next step returned NaN
+#: observations (found by test_fuzz_env_inputs_slow): mass ~10⁶ times the full tank, speed
+#: ~10⁶ times the orbital speed
+_NAN_START = [547846.7, -920853.1, -1836105.9, -1933889.5, 1253081.0]
+
+
+def _nominal(env, key):
+    """The nominal start as the option ``key`` takes it."""
+    task = env.unwrapped.task
+    y = env.unwrapped.scenario.state_nd(scaling=task.scaling)
+    if key == "state_nd":
+        return y
+    if env.unwrapped.task.model.n_state == 5:
+        return env.unwrapped.scenario.nd_to_si(y[None])[0]
+    s = task.scaling
+    return np.r_[y[0:3] * s.length_m, y[3:6] * s.velocity_m_s, y[6] * s.mass_kg]
+
+
+def test_the_pinned_start_that_gave_nan_observations_is_refused():
+    env = gym.make(SOFT)
+    with pytest.raises(ValueError, match=r"options\['state_nd'\].*has mass 1253081 "
+                                         r"\(normalised; .* allowed: above the dry mass 0\.5 "
+                                         r"\(normalised; 300 kg\), at most the full tank"):
+        env.reset(options={"state_nd": _NAN_START})
+    obs, _ = env.reset(seed=0)  # the env is still usable
+    assert np.isfinite(obs).all()
+
+
+@pytest.mark.parametrize("env_id", [SOFT, PIN])
+@pytest.mark.parametrize("key", ["state_nd", "state_si"])
+@pytest.mark.parametrize("bad, match", [
+    ("mass_high", r"has mass .*allowed: above the dry mass .* at most the full tank"),
+    ("mass_dry", r"has mass .*allowed: above the dry mass"),
+    ("below", r"not above the (surface|terminal gate); allowed: above"),
+    ("escape", r"has speed .* m/s relative to the surface; allowed: below the escape speed"),
+    ("nan", r"must be \d finite numbers|contains NaN or inf"),
+])
+def test_pinned_starts_are_checked_as_dispersed_ones(env_id, key, bad, match):
+    """Finite, above the terminal radius, mass in (dry, full tank], bound to the body: a
+    pinned start outside is refused with a ValueError naming the option, the value and the
+    allowed range, in the single and the vector env, and nothing changes."""
+    env = gym.make(env_id)
+    env.reset(seed=1)
+    task = env.unwrapped.task
+    y = np.array(_nominal(env, key), dtype=np.float64)
+    si = key == "state_si"
+    mass_unit = task.mass_ref_kg if si else 1.0
+    if bad == "mass_high":
+        y[-1] = task.full_mass_nd() * mass_unit * 1.001
+    elif bad == "mass_dry":
+        y[-1] = task.dry_mass_nd * mass_unit
+    elif bad == "below":
+        if task.model.n_state == 5:
+            y[0] = task.r_stop_nd * (task.length_ref_m if si else 1.0) * 0.999
+        else:
+            y[0:3] *= 0.999 * task.r_stop_nd / np.linalg.norm(y[0:3])
+    elif bad == "escape":
+        if task.model.n_state == 5:
+            y[1] *= 0.0
+            y[1] = 2.0 * (task.velocity_ref_m_s if si else 1.0)  # twice the orbital speed
+        else:
+            y[3:6] *= 2.0
+    else:
+        y[1] = np.nan
+    before = env.unwrapped.state_nd.copy()
+    with pytest.raises(ValueError, match=match) as info:
+        env.reset(options={key: y})
+    assert f"options['{key}']" in str(info.value) or "NaN" in str(info.value)
+    np.testing.assert_array_equal(env.unwrapped.state_nd, before)
+    venv = _vec(env_id, 2)
+    with pytest.raises(ValueError, match=match):
+        venv.reset(options={key: np.stack([_nominal(env, key), y])})
+    # the nominal start itself passes the same checks, pinned either way
+    obs, _ = env.reset(options={key: _nominal(env, key)})
+    assert np.isfinite(obs).all()
+
+
+@pytest.mark.parametrize("env_id", [SOFT, PIN])
+def test_random_pinned_starts_never_give_nan(env_id):
+    """Starts pinned anywhere near or far from the nominal one (the fuzz's ranges): each is
+    refused by name, or the episode's observations, rewards and infos stay finite."""
+    env = gym.make(env_id).unwrapped
+    task = env.task
+    rng = np.random.default_rng(7)
+    nominal = env.scenario.state_nd(scaling=task.scaling)
+    n_ok = 0
+    for i in range(300):
+        y = nominal * rng.uniform(0.5, 1.5, nominal.size) if i % 2 else \
+            rng.uniform(-2e6, 2e6, nominal.size)
+        if i % 3 == 0:
+            y[-1] = rng.uniform(task.dry_mass_nd, task.full_mass_nd())  # a valid mass
+        try:
+            obs, info = env.reset(options={"state_nd": y})
+        except ValueError as exc:
+            assert "options['state_nd']" in str(exc) and "allowed" in str(exc), exc
+            continue
+        n_ok += 1
+        for _ in range(5):
+            obs, reward, term, trunc, info = env.step(env.action_space.sample())
+            assert np.isfinite(obs).all() and np.isfinite(reward), (y, obs, info)
+            assert all(np.isfinite(v) for v in info.values() if isinstance(v, float)), info
+            if term or trunc:
+                break
+    assert n_ok > 20
+
+
+@pytest.mark.parametrize("env_id", [SOFT, PIN])
+@pytest.mark.parametrize("action, match", [
+    (None, r"action is None; expected an array of real numbers of shape"),
+    (0.3 + 0.1j, r"is complex; actions are real numbers"),
+    (np.array([0.5 + 0j, 0.1 + 0j]), r"is complex; actions are real numbers"),
+    ("0.5", r"holds text, not real numbers"),
+    ([None, 0.2], r"contains None"),
+    ([object(), 0.2], r"holds Python objects, not real numbers"),
+])
+def test_non_numeric_actions_are_refused_by_name(env_id, action, match):
+    """Complex actions passed with a warning (their imaginary part dropped); None was reported
+    as "contains NaN or inf". Both, and other non-numbers, are refused by name in the single
+    and the vector env, and the state is left as it was."""
+    import warnings
+
+    env = gym.make(env_id).unwrapped
+    env.reset(seed=0)
+    y0 = env.state_nd.copy()
+    venv = _vec(env_id, 1)
+    venv.reset(seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", np.exceptions.ComplexWarning)  # none on the way
+        with pytest.raises(ValueError, match=match):
+            env.step(action)
+        np.testing.assert_array_equal(env.state_nd, y0)
+        with pytest.raises(ValueError, match=match):
+            venv.step(action if action is None or np.ndim(action) == 0 else [action])

@@ -290,7 +290,7 @@ def test_ray_cluster_study_with_a_killed_worker(ray_cluster, tmp_path, monkeypat
         assert _done_counts(marks) == Counter({i: 1 for i in range(12)})
         assert len(store.keys()) == 12
         stored = json.loads(store.path(TaskKey("probe", 7, 8)).read_text())
-        assert stored["square"] == 64
+        assert stored["value"]["square"] == 64 and stored["store"]["key"] == ["probe", 7, 8]
         res2, rep2 = run_tasks(tasks, ex, store)  # resume: everything is there already
         assert (rep2.n_skipped, rep2.n_done) == (12, 0) and res2 == res
         # a task's own exception reaches the caller as itself (not retried)

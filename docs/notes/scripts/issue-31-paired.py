@@ -88,7 +88,7 @@ def _print_engine_bins(success: dict[str, dict[int, bool]], thrust: dict[int, fl
 def _curve_success(out_dir: Path, laws: list[str], scale: float) -> dict[str, dict[int, bool]]:
     """Per law, case -> landed, for the curve's flights at ``scale`` in ``out_dir/store``."""
     seed = json.loads((out_dir / "campaign.json").read_text())["seed"]
-    store = ResultStore(out_dir / "store")
+    store = ResultStore.existing(out_dir / "store")
     success: dict[str, dict[int, bool]] = {}
     for law in laws:
         k, rows = 0, {}
