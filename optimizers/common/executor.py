@@ -47,48 +47,19 @@ from __future__ import annotations
 
 import math
 import os
-import re
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from .store import MISSING, ResultSchema, ResultStore
+from .store import MISSING, ResultSchema, ResultStore, TaskKey
 
 __all__ = ["TaskKey", "Task", "Executor", "LocalExecutor", "RayExecutor", "ResultStore",
            "ResultSchema", "run_chunks",
            "get_executor", "run_tasks", "check_importable", "RAY_ADDRESS_ENV"]
 
 RAY_ADDRESS_ENV = "RAY_ADDRESS"
-_SAFE = re.compile(r"[^A-Za-z0-9_.-]+")
-
-
-@dataclass(frozen=True, order=True)
-class TaskKey:
-    """Identity of one task: the problem it belongs to, the master seed, the task's index.
-
-    ``problem`` is any short string that names what the task works on (a problem's name and
-    fingerprint, a scenario and shard size, an Optuna study); ``seed`` the master seed of the
-    whole set of tasks; ``index`` the task's number within it.
-    """
-
-    problem: str
-    seed: int
-    index: int
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.problem, str) or not self.problem:
-            raise ValueError(f"TaskKey.problem = {self.problem!r} must be a non-empty string")
-        for name in ("seed", "index"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                raise ValueError(f"TaskKey.{name} = {v!r} must be a non-negative int")
-
-    @property
-    def filename(self) -> str:
-        """A file name unique to the key (characters outside ``[A-Za-z0-9_.-]`` become ``_``)."""
-        return f"{_SAFE.sub('_', self.problem)}__seed{self.seed}__{self.index:06d}"
 
 
 def check_importable(fn: Callable) -> Callable:

@@ -54,20 +54,20 @@ import io
 import json
 import os
 import pickle
+import re
 import tempfile
 import zipfile
 import zlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from .checkpoint import atomic_write_bytes
 
-if TYPE_CHECKING:
-    from .executor import TaskKey
+_SAFE = re.compile(r"[^A-Za-z0-9_.-]+")
 
-__all__ = ["ResultStore", "ResultSchema", "DamagedResult", "StoreIdentityError",
+__all__ = ["TaskKey", "ResultStore", "ResultSchema", "DamagedResult", "StoreIdentityError",
            "identity_fingerprint", "MISSING", "ENVELOPE_FORMAT"]
 
 #: version of the envelope written around every stored result
@@ -76,6 +76,34 @@ _PICKLE_MAGIC = b"lunar-result "
 _NPZ_HEADER = "__store__"
 _JSON_HEAD = b'{"store": '
 _JSON_SEP = b', "value": '
+
+
+@dataclass(frozen=True, order=True)
+class TaskKey:
+    """Identity of one task: the problem it belongs to, the master seed, the task's index.
+
+    ``problem`` is any short string that names what the task works on (a problem's name and
+    fingerprint, a scenario and shard size, an Optuna study); ``seed`` the master seed of the
+    whole set of tasks; ``index`` the task's number within it.
+    """
+
+    problem: str
+    seed: int
+    index: int
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.problem, str) or not self.problem:
+            raise ValueError(f"TaskKey.problem = {self.problem!r} must be a non-empty string")
+        for name in ("seed", "index"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise ValueError(f"TaskKey.{name} = {v!r} must be a non-negative int")
+
+    @property
+    def filename(self) -> str:
+        """A file name unique to the key (characters outside ``[A-Za-z0-9_.-]`` become ``_``)."""
+        return f"{_SAFE.sub('_', self.problem)}__seed{self.seed}__{self.index:06d}"
+
 
 
 class _Missing:
