@@ -205,7 +205,7 @@ class FlightComputer:
                    target_radius_m=fam.target_radius_m(sc),
                    thrust_elevation_bounds_rad=fam.thrust_elevation_bounds_rad(sc),
                    gate_range_m=core.gate_range_m,
-                   sensors=tuple(getattr(core, "sensors", ())),
+                   sensors=("imu",) if hasattr(core, "sensor_readings") else (),
                    constants=dict(core.physical_constants()),
                    decode=core.observation_quantities,
                    observation_from_state=core.observation_from_state,

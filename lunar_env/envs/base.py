@@ -159,6 +159,12 @@ class _TaskDescription:
         return self._task
 
     @property
+    def sensors(self) -> tuple[str, ...]:
+        """The sensor channels appended to the observation (``sensors=...``; the flight
+        computer reads every sensor through ``sensor_readings()`` whatever this is)."""
+        return self._task.sensors
+
+    @property
     def gate_range_m(self) -> float | None:
         """Distance from the target (m) within which the terminal gate counts; None: the
         terminal radius counts everywhere (soft landing, pinpoint v0/v1)."""
@@ -281,6 +287,11 @@ class LanderEnv(_TaskDescription, gym.Env):
         normalised, shape (n_state,) (a copy); the observation encodes it. Without an
         uncertainty model it equals :attr:`state_nd`."""
         return self._batch.last_navigation[0].copy()
+
+    def sensor_readings(self) -> dict[str, np.ndarray]:
+        """What the lander's sensors read now: ``imu`` (d,), the accelerometers' specific
+        force (m/s², guidance-frame axes) (as :meth:`LanderVectorEnv.sensor_readings`)."""
+        return {k: v[0].copy() for k, v in self._batch.sensor_readings().items()}
 
     @property
     def episode_errors(self) -> EpisodeErrors:
@@ -489,6 +500,15 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
     def observations(self) -> np.ndarray:
         """Current observations of all landers, shape (N, n_obs) float32."""
         return self._batch.observations()
+
+    def sensor_readings(self) -> dict[str, np.ndarray]:
+        """What every lander's sensors read now: ``imu`` (N, d), the accelerometers' specific
+        force over the last decision (m/s², guidance-frame axes: horizontal..., up; 0 plus
+        the sensor's errors at an episode's first decision), with the episode's IMU errors
+        under an uncertainty model (:meth:`~lunar_env.envs.core.LanderBatch.sensor_readings`).
+        A flight computer always has them; ``sensors=("imu",)`` also puts them in the
+        observation."""
+        return self._batch.sensor_readings()
 
     def step_landers(self, actions) -> dict[str, np.ndarray]:
         """Advance every lander by one decision *without* autoreset (for adapters that reset in

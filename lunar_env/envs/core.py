@@ -184,6 +184,7 @@ class LanderBatch:
         self.decision = np.zeros(self.n, dtype=np.int64)
         self._n_angles = nu - 1  # every control channel but the last (throttle) is an angle
         self._nav: np.ndarray | None = None
+        self._last_step: tuple | None = None
 
     @property
     def task(self):
@@ -222,6 +223,7 @@ class LanderBatch:
         new._mass_belief[:] = self._mass_belief
         new._p[:] = self._p
         new._nav = None if self._nav is None else self._nav.copy()
+        new._last_step = self._last_step
         return new
 
     # -- state ----------------------------------------------------------------------------------
@@ -258,11 +260,16 @@ class LanderBatch:
         :meth:`navigation_states`; remembered for :attr:`last_navigation`); ``t_s`` (n,) their
         episode times (s) when already at hand (``info_arrays(...)["time_s"]``), saving a
         multiply."""
-        t = self.t_nd * self._task.time_ref_s if t_s is None else t_s
+        task = self._task
+        t = self.t_nd * task.time_ref_s if t_s is None else t_s
         if not self.uncertain:
-            return self._task.observation(self.y, t)
-        self._nav = self.navigation_states()
-        return self._task.observation(self._nav, t)
+            obs = task.observation(self.y, t)
+        else:
+            self._nav = self.navigation_states()
+            obs = task.observation(self._nav, t)
+        if task.sensors:
+            obs = task.with_sensor_channels(obs, self.sensor_readings())
+        return obs
 
     @property
     def last_navigation(self) -> np.ndarray:
@@ -273,6 +280,41 @@ class LanderBatch:
         if self._nav is None:
             self._nav = self.navigation_states()
         return self._nav
+
+    def specific_force_m_s2(self) -> np.ndarray:
+        """The true specific force of every lander (n, d) (m/s²): its mean thrust acceleration
+        over the last step, along the misaligned thrust axis, in the guidance frame's axes
+        (horizontal..., up; :meth:`~lunar_env.envs.task.LandingTask.thrust_direction`); 0 for
+        a lander that has not flown a step of its episode. The rocket equation gives its
+        magnitude exactly (the step's Δv is c·ln(m₀/m₁) whatever the throttle), its direction
+        is the step's (the frame turns by a few thousandths of a degree in a step)."""
+        task = self._task
+        out = np.zeros((self.n, task.n_axes))
+        if self._last_step is None:
+            return out
+        idx, y0, t0, controls, p = self._last_step
+        rows = np.arange(self.n) if idx is None else np.asarray(idx)
+        live = self.t_nd[rows] > 0.0
+        if not live.any():
+            return out
+        r = rows[live]
+        m0 = y0[live, -1]
+        m1 = self.y[r, -1]
+        dt_s = (self.t_nd[r] - t0[live]) * task.time_ref_s
+        dv_m_s = p[live, 1] * np.log(m0 / m1) * task.velocity_ref_m_s
+        out[r] = task.thrust_direction(controls[live]) * (dv_m_s / dt_s)[:, None]
+        return out
+
+    def sensor_readings(self) -> dict[str, np.ndarray]:
+        """What the flight computer's sensors read now, per lander: ``imu`` (n, d), the
+        accelerometers' specific force (m/s², guidance-frame axes): the truth
+        (:meth:`specific_force_m_s2`) with the episode's IMU errors (scale factor, bias,
+        and white noise of the velocity random walk over the decision interval,
+        counter-based on the episode's IMU key) under an uncertainty model."""
+        f = self.specific_force_m_s2()
+        if not self.uncertain:
+            return {"imu": f}
+        return {"imu": self._task.measured_specific_force(f, self.errors, self.decision)}
 
     def info_arrays(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray,
                     scratch: bool = False) -> dict[str, np.ndarray]:
@@ -371,6 +413,9 @@ class LanderBatch:
                 self.decision += 1
             else:
                 self.decision[idx] += 1
+        # what the IMU measured over this step is read from these (sensor_readings): the
+        # arrays stay untouched until the next step
+        self._last_step = (idx, y0, t0, controls, p)
         y_end, t_end, status, t_burn = self._powered(idx, y0, t0, controls, p)
         k = len(y_end)
         reward = self._reward[:k] if scratch else np.empty(k)

@@ -17,7 +17,7 @@ from .. import dynamics as dyn
 from .. import integrators as integ
 from ..scenarios import PinpointScenario, get_scenario
 from ..uncertainty import EpisodeErrors, UncertaintyModel
-from ..uncertainty.navigation import navigation_error, standard_normals
+from ..uncertainty.navigation import navigation_error, standard_normals, terminal_normals
 from ..validation import require_finite_positive
 from .base import LanderEnv, LanderVectorEnv
 from .task import LandingTask, StepSettings, box, float_array
@@ -114,16 +114,20 @@ def _offset_kernel(y, dpos, dvel, dmass, n_hat, L, V, M, out):  # pragma: no cov
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _navigation_kernel(y, keys, counters, bias_p, bias_v, c, dmass, radius_nd, n_hat, L, V, M,
-                       out):  # pragma: no cover  (compiled)
+def _navigation_kernel(y, keys, counters, bias_p, bias_v, t_frac, t_floor, t_vel, c, dmass,
+                       radius_nd, n_hat, L, V, M, out):  # pragma: no cover  (compiled)
     """:meth:`PinpointTask.navigation_states`: the decision's noise for the whole batch, then
     per lander the true altitude, its navigation errors and the offset state, in one pass (no
     (B, 3) error arrays, no second pass over the states)."""
     z = np.empty((6, y.shape[0]))  # position and velocity noise along the three axes
     standard_normals(keys, counters, z)
+    h = np.empty(y.shape[0])
     for i in range(y.shape[0]):
-        e = navigation_error(z, i, _altitude_row(y, i, radius_nd, L), bias_p, bias_v,
-                                      c, 3)
+        h[i] = _altitude_row(y, i, radius_nd, L)
+    zt = np.empty((6, y.shape[0]))
+    terminal_normals(keys, counters, h, c[6], zt)
+    for i in range(y.shape[0]):
+        e = navigation_error(z, zt, i, h[i], bias_p, bias_v, t_frac, t_floor, t_vel, c, 3)
         _offset_row(y, i, e[0], e[1], e[2], e[3], e[4], e[5], dmass[i], n_hat, L, V, M, out)
 
 
@@ -168,7 +172,8 @@ class PinpointTask(LandingTask):
                  success_miss_m: float = 500.0, max_fall_s: float | None = None,
                  cutoff_speed_m_s: float = 20.0, charge_propellant_on_failure: bool = True,
                  gate_range_m: float | None = None,
-                 uncertainty: UncertaintyModel | str | dict | None = None) -> None:
+                 uncertainty: UncertaintyModel | str | dict | None = None,
+                 sensors: tuple[str, ...] | list[str] = ()) -> None:
         sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
         if not isinstance(sc, PinpointScenario):
             raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not a pinpoint scenario; "
@@ -179,7 +184,7 @@ class PinpointTask(LandingTask):
             cutoff_speed_m_s=cutoff_speed_m_s, default_time_limit_s=1.5 * sc.tf_bounds_s[1],
             # a pinpoint landing always has a miss criterion: None is refused, not read as inf
             success_miss_m=require_finite_positive("success_miss_m", success_miss_m))
-        super().__init__(sc, settings, uncertainty)
+        super().__init__(sc, settings, uncertainty, sensors)
         s = self.scaling
         #: v1 reward: an episode that ends without success is also charged the propellant left
         #: (see the Rewards section of the manual); False gives v0's reward
@@ -227,6 +232,14 @@ class PinpointTask(LandingTask):
                          self.throttle_channel, u)
         return u
 
+    def thrust_direction(self, u: np.ndarray) -> np.ndarray:
+        """Unit thrust directions (B, 3) (along-track, cross-track, up) of controls (α, β rad,
+        throttle): elevation α above the local horizontal, azimuth β from along-track
+        (:func:`lunar_env.dynamics.moon3d_thrust_terms`)."""
+        u = np.asarray(u, dtype=np.float64)
+        ca = np.cos(u[:, 0])
+        return np.stack([ca * np.cos(u[:, 1]), ca * np.sin(u[:, 1]), np.sin(u[:, 0])], axis=1)
+
     def actions_from_controls(self, u: np.ndarray) -> np.ndarray:
         """Actions (B, n_act) float32 of controls (α, β rad, throttle) (B, 3):
         :func:`action_from_angles` on the scenario's bounds, and 2·throttle − 1 with a throttle
@@ -244,7 +257,7 @@ class PinpointTask(LandingTask):
         ``target_radial_m``, ``target_along_m``, ``target_cross_m`` (target − lander in the
         orbital frame), ``u_m_s``, ``v_m_s``, ``w_m_s`` (velocity in the orbital frame),
         ``propellant_kg``, ``time_s``."""
-        o = np.asarray(obs, dtype=np.float64).reshape(-1, 9)
+        o = np.asarray(obs, dtype=np.float64).reshape(-1, self.observation_space.shape[0])
         v0 = self.speed_scale_m_s
         return {"altitude_m": o[:, 0] * self.altitude_scale_m,
                 "target_radial_m": o[:, 1] * self.range_scale_m,
@@ -252,7 +265,7 @@ class PinpointTask(LandingTask):
                 "target_cross_m": o[:, 3] * self.range_scale_m,
                 "u_m_s": o[:, 4] * 0.1 * v0, "v_m_s": o[:, 5] * v0, "w_m_s": o[:, 6] * 0.1 * v0,
                 "propellant_kg": o[:, 7] * self.prop_nominal_nd * self.mass_ref_kg,
-                "time_s": o[:, 8] * self.time_limit_s}
+                "time_s": o[:, 8] * self.time_limit_s, **self.sensor_quantities(obs)}
 
     def physical_constants(self) -> dict[str, float]:
         """SI constants policies may use (derived features): ``thrust_n``,

@@ -17,7 +17,7 @@ from numba.extending import register_jitable
 from .. import integrators as integ
 from ..scenarios import PlanarScenario, get_scenario
 from ..uncertainty import EpisodeErrors, UncertaintyModel
-from ..uncertainty.navigation import navigation_error, standard_normals
+from ..uncertainty.navigation import navigation_error, standard_normals, terminal_normals
 from .base import LanderEnv, LanderVectorEnv
 from .task import LandingTask, StepSettings, box, float_array
 
@@ -100,16 +100,20 @@ def _offset_kernel(y, dpos, dvel, dmass, L, V, M, out):  # pragma: no cover  (co
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _navigation_kernel(y, keys, counters, bias_p, bias_v, c, dmass, r_stop_nd, L, V, M, out
-                       ):  # pragma: no cover  (compiled)
+def _navigation_kernel(y, keys, counters, bias_p, bias_v, t_frac, t_floor, t_vel, c, dmass,
+                       r_stop_nd, L, V, M, out):  # pragma: no cover  (compiled)
     """:meth:`PlanarTask.navigation_states`: the decision's noise for the whole batch, then
     per lander the true altitude, its navigation errors and the offset state, in one pass (no
     (B, 3) error arrays, no second pass over the states)."""
     z = np.empty((4, y.shape[0]))  # planar: position and velocity noise, up and downrange
     standard_normals(keys, counters, z)
+    h = np.empty(y.shape[0])
     for i in range(y.shape[0]):
-        e = navigation_error(z, i, _altitude_row(y, i, r_stop_nd, L), bias_p, bias_v,
-                                      c, 2)
+        h[i] = _altitude_row(y, i, r_stop_nd, L)
+    zt = np.empty((6, y.shape[0]))
+    terminal_normals(keys, counters, h, c[6], zt)
+    for i in range(y.shape[0]):
+        e = navigation_error(z, zt, i, h[i], bias_p, bias_v, t_frac, t_floor, t_vel, c, 2)
         _offset_row(y, i, e[0], e[1], e[3], e[4], dmass[i], L, V, M, out)
 
 
@@ -142,7 +146,8 @@ class PlanarTask(LandingTask):
                  throttle_channel: bool = False, success_speed_m_s: float = 5.0,
                  max_fall_s: float | None = None, cutoff_speed_m_s: float = 20.0,
                  thrust_n: float | None = None,
-                 uncertainty: UncertaintyModel | str | dict | None = None) -> None:
+                 uncertainty: UncertaintyModel | str | dict | None = None,
+                 sensors: tuple[str, ...] | list[str] = ()) -> None:
         sc = get_scenario(scenario) if isinstance(scenario, str) else scenario
         if not isinstance(sc, PlanarScenario):
             raise ValueError(f"scenario {getattr(sc, 'name', sc)!r} is not planar; "
@@ -165,7 +170,7 @@ class PlanarTask(LandingTask):
             dt_s=dt_s, substeps=substeps, time_limit_s=time_limit_s, max_fall_s=max_fall_s,
             throttle_channel=throttle_channel, success_speed_m_s=success_speed_m_s,
             cutoff_speed_m_s=cutoff_speed_m_s, default_time_limit_s=1.5 * sc.tf_bounds_s[1])
-        super().__init__(sc, settings, uncertainty)
+        super().__init__(sc, settings, uncertainty, sensors)
         s = self.scaling
         self.r_stop_nd = float(s.length_nd(sc.surface_radius_m))
         self.altitude_scale_m = max(sc.initial.radius_m - sc.surface_radius_m, 1.0)
@@ -190,6 +195,12 @@ class PlanarTask(LandingTask):
         _controls_kernel(float_array(a), self.throttle_channel, u)
         return u
 
+    def thrust_direction(self, u: np.ndarray) -> np.ndarray:
+        """Unit thrust directions (B, 2) (downrange, up) of controls (φ rad, throttle): cos φ > 0
+        thrusts against +downrange motion (:func:`lunar_env.dynamics.planar_eom`)."""
+        phi = np.asarray(u, dtype=np.float64)[:, 0]
+        return np.stack([-np.cos(phi), np.sin(phi)], axis=1)
+
     def actions_from_controls(self, u: np.ndarray) -> np.ndarray:
         """Actions (B, n_act) float32 of controls (φ rad, throttle) (B, 2):
         :func:`action_from_thrust_angle`, and 2·throttle − 1 with a throttle channel."""
@@ -211,12 +222,12 @@ class PlanarTask(LandingTask):
         """SI quantities encoded in observations (B, 5): the inverse of :meth:`observation`
         (exact inside the observation bounds). Keys: ``altitude_m``,
         ``radial_velocity_m_s``, ``tangential_velocity_m_s``, ``propellant_kg``, ``time_s``."""
-        o = np.asarray(obs, dtype=np.float64).reshape(-1, 5)
+        o = np.asarray(obs, dtype=np.float64).reshape(-1, self.observation_space.shape[0])
         return {"altitude_m": o[:, 0] * self.altitude_scale_m,
                 "radial_velocity_m_s": o[:, 1] * 0.1 * self.speed_scale_m_s,
                 "tangential_velocity_m_s": o[:, 2] * self.speed_scale_m_s,
                 "propellant_kg": o[:, 3] * self.prop_nominal_nd * self.mass_ref_kg,
-                "time_s": o[:, 4] * self.time_limit_s}
+                "time_s": o[:, 4] * self.time_limit_s, **self.sensor_quantities(obs)}
 
     def physical_constants(self) -> dict[str, float]:
         """SI constants of the lander and the body that policies may use (derived features):

@@ -28,10 +28,40 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from ..uncertainty import EpisodeErrors, UncertaintyModel, resolve_uncertainty
+from ..uncertainty import EpisodeErrors, UncertaintyModel, navigation_noise, resolve_uncertainty
+from ..uncertainty.navigation import IMU_SALT
 from ..validation import require_bool, require_finite_positive, require_integer
 
 __all__ = ["LandingTask", "StepSettings", "fall_steps", "float_array", "box"]
+
+#: the sensors an env can put in its observation (``sensors=(...)``)
+SENSORS = ("imu",)
+#: bound of the IMU's observation channels (units of the nominal thrust acceleration at the
+#: wet mass: up to the wet/dry mass ratio at full thrust)
+IMU_OBS_BOUND = 3.0
+
+
+def check_sensors(sensors) -> tuple[str, ...]:
+    """``sensors`` as a tuple of known sensor names (:data:`SENSORS`), each once; ValueError
+    naming an unknown or repeated one."""
+    if isinstance(sensors, str):
+        raise ValueError(f"sensors = {sensors!r} must be a list of names, e.g. ['imu']")
+    try:
+        out = tuple(sensors)
+    except TypeError:
+        raise ValueError(f"sensors = {sensors!r} must be a list of names; known: "
+                         f"{', '.join(SENSORS)}") from None
+    for s in out:
+        if s not in SENSORS:
+            raise ValueError(f"unknown sensor {s!r}; known sensors: {', '.join(SENSORS)}")
+    if len(set(out)) != len(out):
+        raise ValueError(f"sensors = {list(out)} names a sensor twice")
+    return out
+
+
+#: columns of an (up, downrange, crossrange) error in the guidance frame's axis order
+#: (horizontal..., up), by the number of axes
+_GUIDANCE_ORDER = {2: [1, 0], 3: [1, 2, 0]}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,6 +159,7 @@ class _FrozenAfterInit(abc.ABCMeta):
 
     def __call__(cls, *args: Any, **kwargs: Any) -> Any:
         obj = super().__call__(*args, **kwargs)
+        obj._add_sensor_channels()
         object.__setattr__(obj, "_init_arguments", (args, dict(kwargs)))
         object.__setattr__(obj, "_frozen", True)
         return obj
@@ -196,7 +227,9 @@ class LandingTask(metaclass=_FrozenAfterInit):
     observation_space: spaces.Box
 
     def __init__(self, scenario: Any, settings: StepSettings,
-                 uncertainty: UncertaintyModel | str | dict | None = None) -> None:
+                 uncertainty: UncertaintyModel | str | dict | None = None,
+                 sensors: tuple[str, ...] | list[str] = ()) -> None:
+        self.sensors = check_sensors(sensors)
         self.uncertainty = resolve_uncertainty(uncertainty)
         # the navigation model packed once for the compiled navigation kernels
         self._nav_consts = self.uncertainty.navigation_constants()
@@ -299,6 +332,54 @@ class LandingTask(metaclass=_FrozenAfterInit):
         :meth:`controls_from_actions` within the action bounds (angles beyond them clip to
         ±1; without a throttle channel the throttle is left out)."""
 
+    def _add_sensor_channels(self) -> None:
+        """After the subclass built its observation space: the sensor channels' columns
+        appended to it (the IMU's specific force in units of the nominal thrust acceleration
+        at the wet mass, within ±:data:`IMU_OBS_BOUND`)."""
+        self.n_base_obs = int(self.observation_space.shape[0])
+        if "imu" in self.sensors:
+            v = self.scenario.vehicle
+            self.imu_ref_m_s2 = float(v.thrust_n / v.mass_kg)
+            low = np.concatenate([self.observation_space.low, [-IMU_OBS_BOUND] * self.n_axes])
+            high = np.concatenate([self.observation_space.high, [IMU_OBS_BOUND] * self.n_axes])
+            self.observation_space = box(low, high)
+
+    def with_sensor_channels(self, obs: np.ndarray, readings: dict[str, np.ndarray]
+                             ) -> np.ndarray:
+        """Observations (B, n_base_obs) with the sensor channels of ``readings``
+        (:meth:`~lunar_env.envs.core.LanderBatch.sensor_readings`) appended, float32."""
+        if "imu" not in self.sensors:
+            return obs
+        imu = np.clip(readings["imu"] / self.imu_ref_m_s2, -IMU_OBS_BOUND, IMU_OBS_BOUND)
+        return np.concatenate([obs, imu.astype(np.float32)], axis=1)
+
+    def sensor_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
+        """SI quantities of the sensor channels of observations (B, n_obs): ``imu_m_s2`` (B,
+        n_axes), the measured specific force (m/s²; exact inside the bounds)."""
+        if "imu" not in self.sensors:
+            return {}
+        o = np.asarray(obs, dtype=np.float64).reshape(-1, self.observation_space.shape[0])
+        return {"imu_m_s2": o[:, self.n_base_obs:self.n_base_obs + self.n_axes]
+                * self.imu_ref_m_s2}
+
+    @abc.abstractmethod
+    def thrust_direction(self, u: np.ndarray) -> np.ndarray:
+        """Unit thrust directions (B, n_axes) of model controls ``u`` (B, n_control) in the
+        guidance frame's axes (horizontal..., up)."""
+
+    def measured_specific_force(self, f_m_s2: np.ndarray, errors: EpisodeErrors,
+                                decisions: np.ndarray) -> np.ndarray:
+        """The accelerometers' reading (B, n_axes) (m/s², guidance-frame axes) of true specific
+        forces ``f_m_s2`` (B, n_axes) of episodes with ``errors`` (B rows) at decision indices
+        ``decisions`` (B,): gain × truth + bias + white noise, the noise's σ the velocity
+        random walk over √dt (counter-based on the episode's IMU key)."""
+        order = _GUIDANCE_ORDER[self.n_axes]
+        z = navigation_noise(np.ascontiguousarray(errors.noise_key, dtype=np.uint64) ^ IMU_SALT,
+                             np.ascontiguousarray(decisions, dtype=np.int64), 3)
+        sigma = self.uncertainty.imu_vrw_m_s_sqrt_s / math.sqrt(self.dt_s)
+        return (errors.imu_scale[:, None] * f_m_s2 + errors.imu_bias_m_s2[:, order]
+                + sigma * z[:, order])
+
     @abc.abstractmethod
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Observations (B, n_obs) float32 of states ``y`` (B, n_state) at times ``t_s`` (B,)
@@ -344,12 +425,14 @@ class LandingTask(metaclass=_FrozenAfterInit):
     def _navigation_inputs(self, y: np.ndarray, errors: EpisodeErrors,
                            counters: np.ndarray, mass_belief_kg: np.ndarray) -> tuple:
         """The leading arguments of a task's fused navigation kernel, in its order: (states,
-        noise keys, decision indices, position and velocity biases, the packed navigation
-        model, mass errors), as C-contiguous arrays of the kernel's dtypes."""
+        noise keys, decision indices, the inertial position and velocity biases, the terminal
+        sensors' position fractions, floors and velocity biases, the packed navigation model,
+        mass errors), as C-contiguous arrays of the kernel's dtypes."""
         return (np.ascontiguousarray(y, dtype=np.float64), errors.noise_key,
                 np.ascontiguousarray(counters, dtype=np.int64), errors.nav_position_bias_m,
-                errors.nav_velocity_bias_m_s, self._nav_consts,
-                np.ascontiguousarray(mass_belief_kg, dtype=np.float64))
+                errors.nav_velocity_bias_m_s, errors.sensor_position_fraction,
+                errors.sensor_position_floor_m, errors.sensor_velocity_bias_m_s,
+                self._nav_consts, np.ascontiguousarray(mass_belief_kg, dtype=np.float64))
 
     @abc.abstractmethod
     def radius_nd(self, y: np.ndarray) -> np.ndarray:

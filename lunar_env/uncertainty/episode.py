@@ -14,7 +14,7 @@ import numpy as np
 from ..validation import InvalidTypeError
 from ._random import TRUNCATION_SIGMA
 from .model import UncertaintyModel
-from .navigation import _errors
+from .navigation import EPISODE_SALT, _errors, navigation_noise
 
 __all__ = ["EpisodeErrors", "error_stream", "N_NORMALS"]
 
@@ -45,6 +45,26 @@ def _misaligned(controls, bias, n_angles, out):  # pragma: no cover  (compiled)
             out[i, j] = controls[i, j] + bias[i, j] if j < n_angles else controls[i, j]
 
 
+def sensor_normals(keys: np.ndarray) -> np.ndarray:
+    """The sensors' per-episode standard normals (n, 14), truncated at ±4.5, of episodes with
+    navigation noise keys ``keys`` (n,): counter-based normals of a key of their own (the
+    keys XOR :data:`~lunar_env.uncertainty.navigation.EPISODE_SALT`, counter 0). Columns: the
+    terminal sensors' position fraction (3), floor (3), velocity bias (3); the accelerometers'
+    bias (3) and scale factor (1); one spare."""
+    k = np.ascontiguousarray(keys, dtype=np.uint64) ^ EPISODE_SALT
+    return navigation_noise(k, np.zeros(len(k), dtype=np.int64), 14)
+
+
+def _sensor_draws(model: UncertaintyModel, keys: np.ndarray) -> dict[str, np.ndarray]:
+    z = sensor_normals(keys)
+    m = model
+    return {"sensor_position_fraction": z[:, 0:3] * np.asarray(m.sensor_position_fraction),
+            "sensor_position_floor_m": z[:, 3:6] * np.asarray(m.sensor_position_floor_m),
+            "sensor_velocity_bias_m_s": z[:, 6:9] * np.asarray(m.sensor_velocity_bias_m_s),
+            "imu_bias_m_s2": z[:, 9:12] * m.imu_bias_m_s2,
+            "imu_scale": 1.0 + z[:, 12] * m.imu_scale_factor}
+
+
 @dataclass
 class EpisodeErrors:
     """The errors of n episodes (arrays along axis 0), SI.
@@ -65,10 +85,22 @@ class EpisodeErrors:
     mass_error_kg : ndarray (n,)
         True minus planned initial mass.
     nav_position_bias_m, nav_velocity_bias_m_s : ndarray (n, 3)
-        Navigation bias at altitude.
+        The inertial solution's navigation bias.
     noise_key : ndarray (n,) uint64
         Key of the per-decision navigation noise
-        (:func:`~lunar_env.uncertainty.navigation_noise`).
+        (:func:`~lunar_env.uncertainty.navigation_noise`); the terminal sensors' and the IMU's
+        keys and per-episode draws derive from it (streams of their own).
+    sensor_position_fraction : ndarray (n, 3)
+        The terminal sensors' position error, a fraction of the altitude (up, downrange,
+        crossrange).
+    sensor_position_floor_m : ndarray (n, 3)
+        Their position error that does not shrink with the altitude (m).
+    sensor_velocity_bias_m_s : ndarray (n, 3)
+        The velocimeter's bias (m/s).
+    imu_bias_m_s2 : ndarray (n, 3)
+        The accelerometers' bias along the guidance frame's axes (horizontal..., up) (m/s²).
+    imu_scale : ndarray (n,)
+        The accelerometers' gain (1 + scale-factor error).
     """
 
     entry_position_m: np.ndarray
@@ -80,6 +112,11 @@ class EpisodeErrors:
     nav_position_bias_m: np.ndarray
     nav_velocity_bias_m_s: np.ndarray
     noise_key: np.ndarray
+    sensor_position_fraction: np.ndarray
+    sensor_position_floor_m: np.ndarray
+    sensor_velocity_bias_m_s: np.ndarray
+    imu_bias_m_s2: np.ndarray
+    imu_scale: np.ndarray
 
     # -- construction ---------------------------------------------------------------------------
     @classmethod
@@ -87,14 +124,17 @@ class EpisodeErrors:
         """No error for n episodes."""
         z3 = np.zeros((n, 3))
         return cls(z3.copy(), z3.copy(), np.ones(n), np.ones(n), np.zeros((n, 2)), np.zeros(n),
-                   z3.copy(), z3.copy(), np.zeros(n, dtype=np.uint64))
+                   z3.copy(), z3.copy(), np.zeros(n, dtype=np.uint64), z3.copy(), z3.copy(),
+                   z3.copy(), z3.copy(), np.ones(n))
 
     @classmethod
     def draw(cls, model: UncertaintyModel, rng: np.random.Generator) -> EpisodeErrors:
         """One episode's errors under ``model`` from ``rng`` (one row). Always consumes the
         same draws (:data:`N_NORMALS` normals truncated at ±:data:`~lunar_env.uncertainty.
         TRUNCATION_SIGMA`, then one 64-bit key) whatever the σ, so every scale of a model sees
-        the same standard-normal draws."""
+        the same standard-normal draws. The sensors' per-episode errors are normals of a
+        counter-based stream of that key (:func:`sensor_normals`): a stream of their own, so
+        the other draws are those of a model without sensors."""
         z = np.clip(rng.standard_normal(N_NORMALS), -TRUNCATION_SIGMA, TRUNCATION_SIGMA)
         key = rng.integers(0, np.iinfo(np.uint64).max, dtype=np.uint64, endpoint=True)
         m = model
@@ -108,7 +148,16 @@ class EpisodeErrors:
             nav_position_bias_m=(z[11:14] * np.asarray(m.nav_position_bias_m))[None],
             nav_velocity_bias_m_s=(z[14:17] * np.asarray(m.nav_velocity_bias_m_s))[None],
             noise_key=np.array([key], dtype=np.uint64),
+            **_sensor_draws(m, np.array([key], dtype=np.uint64)),
         )
+
+    def with_sensor_draws(self, model: UncertaintyModel) -> EpisodeErrors:
+        """These errors with the sensors' per-episode errors under ``model`` drawn from each
+        row's noise key (:func:`sensor_normals`); a copy."""
+        out = self.take(np.arange(len(self.noise_key)))
+        for k, v in _sensor_draws(model, self.noise_key).items():
+            setattr(out, k, v)
+        return out
 
     @classmethod
     def from_option(cls, value: dict[str, Any], row: int | None = None) -> EpisodeErrors:
@@ -144,7 +193,7 @@ class EpisodeErrors:
                                  f"{want}" + ("" if row is None else f" or (num_envs, *{want})"))
             if k != "noise_key" and not np.all(np.isfinite(arr)):
                 raise ValueError(f"options['errors'][{k!r}] = {v!r} is not finite")
-            if k in ("thrust_scale", "isp_scale") and not arr > 0.0:
+            if k in ("thrust_scale", "isp_scale", "imu_scale") and not arr > 0.0:
                 raise ValueError(f"options['errors'][{k!r}] = {v!r} must be > 0 (a scale "
                                  "factor)")
             target[0] = arr
@@ -222,10 +271,9 @@ class EpisodeErrors:
                           ) -> tuple[np.ndarray, np.ndarray]:
         """Position and velocity navigation errors (n, 3) each, along (up, downrange,
         crossrange) (m, m/s), of these n episodes under ``model`` at decision indices
-        ``counters`` (n,) and true altitudes ``altitude_m`` (n,) (m): (bias + σ_noise ·
-        :func:`~lunar_env.uncertainty.navigation_noise`) ×
-        :meth:`~lunar_env.uncertainty.UncertaintyModel.radar_weight`, in one compiled call of
+        ``counters`` (n,) and true altitudes ``altitude_m`` (n,) (m): the inertial solution's
+        above the terminal sensors' acquisition, theirs below the hand-over, blended between
+        (:mod:`~lunar_env.uncertainty.navigation`), in one compiled call of
         :func:`~lunar_env.uncertainty.navigation.navigation_error`. ``n_axes`` = 2 (a planar
         task) leaves the crossrange components 0 and draws no noise for them."""
-        return _errors(model.navigation_constants(), self.noise_key, self.nav_position_bias_m,
-                       self.nav_velocity_bias_m_s, counters, altitude_m, n_axes)
+        return _errors(model.navigation_constants(), self, counters, altitude_m, n_axes)

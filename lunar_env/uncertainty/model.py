@@ -11,10 +11,16 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..validation import InvalidTypeError, require_number
-from .navigation import _weights
+from .navigation import blend_weight
 
-__all__ = ["UncertaintyModel", "SIGMA_LIMITS", "NAMED_SETS", "get_uncertainty",
-           "resolve_uncertainty"]
+__all__ = ["UncertaintyModel", "SIGMA_LIMITS", "NAMED_SETS", "GROUPS", "MODEL_VERSION",
+           "get_uncertainty", "resolve_uncertainty"]
+
+#: version of the uncertainty model's meaning (its fields and how an episode draws and applies
+#: them); recorded by campaigns, whose stores refuse results of another version. 2: terminal
+#: sensors with errors of their own after acquisition, and the IMU (1: navigation errors
+#: scaled down below a radar lock altitude).
+MODEL_VERSION = 2
 
 
 class _Limit(NamedTuple):
@@ -34,6 +40,8 @@ _ENGINE_SCALE = _Limit(0.2, "", "the engine keeps a positive thrust and Isp with
                        "truncation: 1 - 4.5 × 0.2 = 0.1")
 _NAV_POSITION = _Limit(50_000.0, "m", "navigation off by more is lost, not in error; offsets "
                        "along straight local axes")
+_FRACTION = _Limit(0.5, "", "a range sensor wrong by half its range has not acquired the "
+                   "ground")
 _LIMITS: dict[str, _Limit] = {
     "entry_position_m": _POSITION,
     "entry_velocity_m_s": _VELOCITY,
@@ -47,6 +55,18 @@ _LIMITS: dict[str, _Limit] = {
     "nav_velocity_bias_m_s": _VELOCITY,
     "nav_position_noise_m": _NAV_POSITION,
     "nav_velocity_noise_m_s": _VELOCITY,
+    "sensor_position_fraction": _FRACTION,
+    "sensor_position_noise_fraction": _FRACTION,
+    "sensor_position_floor_m": _Limit(1000.0, "m", "a terrain map off by more is another "
+                                      "landing site"),
+    "sensor_velocity_bias_m_s": _VELOCITY,
+    "sensor_velocity_noise_m_s": _VELOCITY,
+    "imu_bias_m_s2": _Limit(1.0, "m/s²", "0.1 g: a hundred times a tactical-grade "
+                            "accelerometer's bias; more is a failed sensor"),
+    "imu_scale_factor": _Limit(0.2, "", "as the engine scales: a positive gain within the "
+                               "truncation"),
+    "imu_vrw_m_s_sqrt_s": _Limit(1.0, "m/s/√s", "a hundred times a tactical-grade "
+                                 "accelerometer's velocity random walk"),
 }
 
 #: exclusive upper limit of each 1σ field of :class:`UncertaintyModel` (the field's unit; a
@@ -54,10 +74,26 @@ _LIMITS: dict[str, _Limit] = {
 SIGMA_LIMITS: dict[str, float] = {k: v.value for k, v in _LIMITS.items()}
 
 _VECTORS = ("entry_position_m", "entry_velocity_m_s", "nav_position_bias_m",
-            "nav_velocity_bias_m_s", "nav_position_noise_m", "nav_velocity_noise_m_s")
-_SCALARS = ("thrust_scale", "isp_scale", "misalignment_rad", "mass_kg")
-_FRACTIONS = ("radar_lock_fraction", "near_ground_position_fraction",
-              "near_ground_velocity_fraction")
+            "nav_velocity_bias_m_s", "nav_position_noise_m", "nav_velocity_noise_m_s",
+            "sensor_position_fraction", "sensor_position_noise_fraction",
+            "sensor_position_floor_m", "sensor_velocity_bias_m_s", "sensor_velocity_noise_m_s")
+_SCALARS = ("thrust_scale", "isp_scale", "misalignment_rad", "mass_kg", "imu_bias_m_s2",
+            "imu_scale_factor", "imu_vrw_m_s_sqrt_s")
+
+#: the error groups (a named set isolates each, :meth:`UncertaintyModel.only`; a leave-one-out
+#: study drops one, :meth:`UncertaintyModel.without`): the state at powered-descent initiation,
+#: the engine and the vehicle's mass, navigation before the terminal sensors acquire, and the
+#: sensors (the terminal sensors' own errors and the IMU's)
+GROUPS: dict[str, tuple[str, ...]] = {
+    "entry": ("entry_position_m", "entry_velocity_m_s"),
+    "engine": ("thrust_scale", "isp_scale", "misalignment_rad", "mass_kg"),
+    "navigation": ("nav_position_bias_m", "nav_velocity_bias_m_s", "nav_position_noise_m",
+                   "nav_velocity_noise_m_s"),
+    "sensors": ("sensor_position_fraction", "sensor_position_noise_fraction",
+                "sensor_position_floor_m", "sensor_velocity_bias_m_s",
+                "sensor_velocity_noise_m_s", "imu_bias_m_s2", "imu_scale_factor",
+                "imu_vrw_m_s_sqrt_s"),
+}
 
 
 def _sigma(field: str, label: str, value) -> float:
@@ -104,16 +140,32 @@ class UncertaintyModel:
     nav_position_bias_m, nav_velocity_bias_m_s : (float, float, float)
         1σ navigation bias per episode, at altitude (m, m/s).
     nav_position_noise_m, nav_velocity_noise_m_s : (float, float, float)
-        1σ navigation white noise per decision, at altitude (m, m/s).
-    radar_altitude_m : float
-        Altitude (m) at which the terminal sensors lock (finite, > 0; no upper limit: an
-        altitude above the start means they never lock, as the default 1e9 m).
-    radar_lock_fraction : float
-        Multiplier of the navigation errors at lock, in [0, 1]; below the lock altitude it
-        falls in proportion to the altitude (:meth:`radar_weight`).
-    near_ground_position_fraction, near_ground_velocity_fraction : float
-        Floors of the position and velocity multipliers (the sensors' accuracy near the
-        ground, as fractions of the errors at altitude), in [0, 1].
+        1σ navigation white noise per decision, before the terminal sensors acquire (m, m/s).
+    sensor_altitude_m : float
+        Altitude (m) at which the terminal sensors (altimeter and velocimeter: a landing radar
+        or Doppler lidar, with terrain-relative navigation for the horizontal position)
+        acquire the ground (finite, > 0; the default 1e9 m: never).
+    sensor_blend_fraction : float
+        The navigation filter's hand-over: over the altitudes from ``sensor_altitude_m`` down
+        by this fraction of it, the error blends linearly from the inertial solution's to the
+        terminal sensors' (:meth:`sensor_weight`); in (0, 1].
+    sensor_position_fraction : (float, float, float)
+        1σ error per episode of the terminal sensors' position along (up, downrange,
+        crossrange), as a fraction of the altitude (a range sensor's error is a fraction of
+        its range; the horizontal one is terrain-relative navigation's).
+    sensor_position_noise_fraction : (float, float, float)
+        1σ noise per decision of the same, as a fraction of the altitude.
+    sensor_position_floor_m : (float, float, float)
+        1σ error per episode that does not shrink with the altitude (m): the terrain map's.
+    sensor_velocity_bias_m_s, sensor_velocity_noise_m_s : (float, float, float)
+        1σ error per episode and noise per decision of the velocimeter (m/s).
+    imu_bias_m_s2 : float
+        1σ accelerometer bias per axis per episode (m/s²).
+    imu_scale_factor : float
+        1σ accelerometer scale-factor error per episode (relative).
+    imu_vrw_m_s_sqrt_s : float
+        Accelerometer velocity random walk (m/s/√s): the noise of a decision's mean specific
+        force is this over √dt.
 
     Notes
     -----
@@ -145,6 +197,17 @@ class UncertaintyModel:
                                                          entry errors)
     ``nav_velocity_bias_m_s``,              < 100 m/s    as ``entry_velocity_m_s``
     ``nav_velocity_noise_m_s``
+    ``sensor_position_fraction``,           < 0.5        a range sensor wrong by half its range
+    ``sensor_position_noise_fraction``                   has not acquired the ground
+    ``sensor_position_floor_m``             < 1000 m     a terrain map off by more is another
+                                                         landing site
+    ``sensor_velocity_bias_m_s``,           < 100 m/s    as ``entry_velocity_m_s``
+    ``sensor_velocity_noise_m_s``
+    ``imu_bias_m_s2``                       < 1 m/s²     0.1 g, a hundred times a
+                                                         tactical-grade accelerometer's bias
+    ``imu_scale_factor``                    < 0.2        a positive gain within the truncation
+    ``imu_vrw_m_s_sqrt_s``                  < 1 m/s/√s   a hundred times a tactical-grade
+                                                         accelerometer's
     ======================================  ===========  =======================================
 
     A model within the limits may still be refused at reset by a task for a draw that puts
@@ -169,10 +232,16 @@ class UncertaintyModel:
     nav_velocity_bias_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
     nav_position_noise_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     nav_velocity_noise_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    radar_altitude_m: float = 1.0e9
-    radar_lock_fraction: float = 1.0
-    near_ground_position_fraction: float = 1.0
-    near_ground_velocity_fraction: float = 1.0
+    sensor_altitude_m: float = 1.0e9
+    sensor_blend_fraction: float = 0.1
+    sensor_position_fraction: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    sensor_position_noise_fraction: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    sensor_position_floor_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    sensor_velocity_bias_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    sensor_velocity_noise_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    imu_bias_m_s2: float = 0.0
+    imu_scale_factor: float = 0.0
+    imu_vrw_m_s_sqrt_s: float = 0.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -182,17 +251,17 @@ class UncertaintyModel:
             object.__setattr__(self, f, _vec3(f, getattr(self, f)))
         for f in _SCALARS:
             object.__setattr__(self, f, _sigma(f, f, getattr(self, f)))
-        r = require_number("UncertaintyModel.radar_altitude_m", self.radar_altitude_m)
+        r = require_number("UncertaintyModel.sensor_altitude_m", self.sensor_altitude_m)
         if not (math.isfinite(r) and r > 0.0):
-            raise ValueError(f"UncertaintyModel.radar_altitude_m = {self.radar_altitude_m!r} is "
-                             "not allowed; it must be finite and > 0 (m)")
-        object.__setattr__(self, "radar_altitude_m", r)
-        for name in _FRACTIONS:
-            f = require_number(f"UncertaintyModel.{name}", getattr(self, name))
-            if not 0.0 <= f <= 1.0:
-                raise ValueError(f"UncertaintyModel.{name} = {getattr(self, name)!r} is not "
-                                 "allowed; it must be in [0, 1]")
-            object.__setattr__(self, name, f)
+            raise ValueError(f"UncertaintyModel.sensor_altitude_m = {self.sensor_altitude_m!r} "
+                             "is not allowed; it must be finite and > 0 (m)")
+        object.__setattr__(self, "sensor_altitude_m", r)
+        b = require_number("UncertaintyModel.sensor_blend_fraction", self.sensor_blend_fraction)
+        if not 0.0 < b <= 1.0:
+            raise ValueError(f"UncertaintyModel.sensor_blend_fraction = "
+                             f"{self.sensor_blend_fraction!r} is not allowed; it must be in "
+                             "(0, 1]")
+        object.__setattr__(self, "sensor_blend_fraction", b)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> UncertaintyModel:
@@ -203,14 +272,21 @@ class UncertaintyModel:
         d = dict(d)
         base = d.pop("base", None)
         scale = d.pop("scale", None)
+        only = d.pop("only", None)
+        without = d.pop("without", None)
         allowed = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - allowed)
         if unknown:
             raise ValueError(f"unknown uncertainty setting(s) {', '.join(map(repr, unknown))}; "
-                             f"allowed: base, scale, {', '.join(sorted(allowed))}")
+                             f"allowed: base, scale, only, without, "
+                             f"{', '.join(sorted(allowed))}")
         model = get_uncertainty(base) if base is not None else cls()
         if d:
             model = model.replace(**({"name": "custom"} | d))
+        if only is not None:
+            model = model.only(*([only] if isinstance(only, str) else only))
+        if without is not None:
+            model = model.without(*([without] if isinstance(without, str) else without))
         if scale is not None:
             model = model.scaled(scale)
         return model
@@ -224,9 +300,27 @@ class UncertaintyModel:
                              f"allowed: {', '.join(sorted(allowed))}")
         return dataclasses.replace(self, **changes)
 
+    def _zeroed(self, names, label: str) -> UncertaintyModel:
+        ch: dict[str, Any] = {f: (0.0, 0.0, 0.0) if f in _VECTORS else 0.0 for f in names}
+        return dataclasses.replace(self, name=label, **ch)
+
+    def only(self, *groups: str) -> UncertaintyModel:
+        """The errors of ``groups`` (of :data:`GROUPS`) alone, every other σ zero; named
+        ``"<name>[only a+b]"``. ``ValueError`` naming an unknown group."""
+        _check_groups(groups)
+        drop = [f for g, names in GROUPS.items() if g not in groups for f in names]
+        return self._zeroed(drop, f"{self.name}[only {'+'.join(groups)}]")
+
+    def without(self, *groups: str) -> UncertaintyModel:
+        """Every error but those of ``groups`` (of :data:`GROUPS`; a leave-one-out study);
+        named ``"<name>[without a+b]"``. ``ValueError`` naming an unknown group."""
+        _check_groups(groups)
+        drop = [f for g in groups for f in GROUPS[g]]
+        return self._zeroed(drop, f"{self.name}[without {'+'.join(groups)}]")
+
     def scaled(self, k: float) -> UncertaintyModel:
-        """Every σ multiplied by ``k`` >= 0 (the radar altitude and the radar's fractions are
-        kept); named ``"<name>×k"``. ``scaled(0)`` has no error at all. A scale that takes a
+        """Every σ multiplied by ``k`` >= 0 (the sensors' acquisition altitude and hand-over
+        are kept); named ``"<name>×k"``. ``scaled(0)`` has no error at all. A scale that takes a
         σ to its limit (:data:`SIGMA_LIMITS`) raises ValueError naming the field."""
         k = require_number("scale", k)
         if not (math.isfinite(k) and k >= 0.0):
@@ -240,31 +334,39 @@ class UncertaintyModel:
     def is_null(self) -> bool:
         """True if every σ is zero (the env then runs exactly as without the model)."""
         return (all(v == 0.0 for f in _VECTORS for v in getattr(self, f))
-                and self.thrust_scale == self.isp_scale == self.misalignment_rad
-                == self.mass_kg == 0.0)
+                and all(getattr(self, f) == 0.0 for f in _SCALARS))
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready fields (lists for the vectors)."""
         return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
                 for f in fields(self)}
 
-    def radar_weight(self, altitude_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Navigation error multipliers (position, velocity), each shaped as ``altitude_m``
-        (m): 1 above the radar's lock altitude; below it ``radar_lock_fraction`` × altitude /
-        lock altitude, never under the near-ground fractions (the arithmetic of the compiled
+    def sensor_weight(self, altitude_m: np.ndarray) -> np.ndarray:
+        """The weight of the inertial solution's error at ``altitude_m`` (m), shaped as it: 1
+        above the terminal sensors' acquisition altitude, 0 below the hand-over band, linear in
+        between; the terminal sensors' error has weight 1 − w (the arithmetic of the compiled
         :func:`~lunar_env.uncertainty.navigation.navigation_error`)."""
-        return _weights(altitude_m, self.radar_altitude_m, self.radar_lock_fraction,
-                        self.near_ground_position_fraction, self.near_ground_velocity_fraction)
+        return blend_weight(np.asarray(altitude_m, dtype=np.float64), self.sensor_altitude_m,
+                            self.sensor_blend_fraction)
 
     def navigation_constants(self) -> np.ndarray:
         """The navigation part of the model packed for the compiled kernels
-        (:func:`~lunar_env.uncertainty.navigation.navigation_error`): float64 (10,) = noise σ of
-        position (3, m) and velocity (3, m/s) along (up, downrange, crossrange), radar lock
-        altitude (m), lock fraction, near-ground position and velocity fractions."""
+        (:func:`~lunar_env.uncertainty.navigation.navigation_error`): float64 (14,) = the
+        inertial solution's noise σ of position (3, m) and velocity (3, m/s) along (up,
+        downrange, crossrange), the acquisition altitude (m), the hand-over fraction, and the
+        terminal sensors' noise: position (3, fraction of the altitude), velocity (3, m/s)."""
         return np.array([*self.nav_position_noise_m, *self.nav_velocity_noise_m_s,
-                         self.radar_altitude_m, self.radar_lock_fraction,
-                         self.near_ground_position_fraction,
-                         self.near_ground_velocity_fraction], dtype=np.float64)
+                         self.sensor_altitude_m, self.sensor_blend_fraction,
+                         *self.sensor_position_noise_fraction,
+                         *self.sensor_velocity_noise_m_s], dtype=np.float64)
+
+
+def _check_groups(groups) -> None:
+    if not groups:
+        raise ValueError(f"name at least one error group; groups: {', '.join(GROUPS)}")
+    for g in groups:
+        if g not in GROUPS:
+            raise ValueError(f"unknown error group {g!r}; groups: {', '.join(GROUPS)}")
 
 
 # -------------------------------------------------------------------------------------------
@@ -296,29 +398,48 @@ _STANDARD = UncertaintyModel(
     nav_velocity_bias_m_s=(0.5, 0.5, 0.5),
     nav_position_noise_m=(10.0, 10.0, 10.0),
     nav_velocity_noise_m_s=(0.1, 0.1, 0.1),
-    # The terminal sensors (a landing radar or Doppler lidar, with terrain-relative
-    # navigation) lock at 3 km and measure range to a fraction of itself: the errors drop at
-    # lock to 5 % of the pre-radar ones (100 m -> 5 m up at 3 km, 0.17 % of the range; the
-    # Doppler lidar flown on IM-1 matched its reconstructed trajectory to ~5 m and 0.5 m/s,
-    # NASA NTRS 20250010290) and then shrink with the altitude, to floors of 1 % in position
-    # (1 m up, 2 m across) and 20 % in velocity (0.5 -> 0.1 m/s, the Doppler's resolution).
-    # Two earlier versions were measured and replaced (docs/notes/issue-29.md): errors
-    # shrinking to 10 % at the surface (10 m of altitude error at touchdown: a constant-thrust
-    # engine that cuts off at its believed zero altitude falls 10 m and lands at 5.7 m/s,
-    # over the 5 m/s limit), and a linear blend from 100 % at lock to 1 % at the surface,
-    # which still left ~70 m of altitude error at the pinpoint env's 2 km gate, where a 5 m/s
-    # gate speed needs a few metres: every law failed every case on it.
-    radar_altitude_m=3000.0,
-    radar_lock_fraction=0.05,
-    near_ground_position_fraction=0.01,
-    near_ground_velocity_fraction=0.2,
+    # The terminal sensors: an altimeter and velocimeter (a landing radar or a Doppler lidar)
+    # and terrain-relative navigation for the horizontal position. Their errors are their own
+    # once they have acquired: a range sensor's error is a fraction of its range.
+    # - Acquisition at 5 km: the Doppler lidar of NASA's NDL class operates "from over five
+    #   kilometers altitude" (Amzajerdian et al., NASA NTRS 20160010177; flown on IM-1).
+    #   Apollo's landing radar gave altitude from ~12 km (40 000 ft); 5 km is the lidar's.
+    sensor_altitude_m=5000.0,
+    # - Hand-over over 10 % of the acquisition altitude (500 m, 5–10 s of descent): a choice,
+    #   the navigation filter's convergence over a few updates of a new measurement type.
+    sensor_blend_fraction=0.1,
+    # - Position: the range error 0.1 % of the altitude per episode (5 m at 5 km: IM-1's NDL
+    #   matched its reconstructed trajectory to ~5 m, NASA NTRS 20250010290), its noise half
+    #   that (the lidar's "few meters precision"); horizontally, terrain-relative navigation to
+    #   1 % of the altitude (40 m from 4.2 km, Mars 2020's Lander Vision System requirement),
+    #   noise a fifth of it; a terrain-map floor of 0.5 m up and 3 m across (SLIM's vision
+    #   navigation held its landing point to ~3–4 m, JAXA).
+    sensor_position_fraction=(0.001, 0.01, 0.01),
+    sensor_position_noise_fraction=(0.0005, 0.002, 0.002),
+    sensor_position_floor_m=(0.5, 3.0, 3.0),
+    # - Velocity: "a few cm/sec" precision of the NDL class (Amzajerdian et al.): 5 cm/s of
+    #   bias per episode and of noise per decision, per axis.
+    sensor_velocity_bias_m_s=(0.05, 0.05, 0.05),
+    sensor_velocity_noise_m_s=(0.05, 0.05, 0.05),
+    # The IMU's accelerometers (the specific force every lander measures). Bias 0.001 m/s²
+    # (~100 µg): Apollo's mission rules updated the LM's PIPA bias beyond 0.003 ft/s² (Apollo
+    # Data Priority memo 69-PA-T-72A, 1969; "accelerometer bias is one of the two most
+    # undesirable LM IMU errors" during descent). Scale factor 100 ppm and velocity random walk
+    # 3e-4 m/s/√s (0.02 m/s/√h): choices at the level of a tactical-grade unit, an order
+    # better than consumer MEMS (~1e-3 m/s/√s).
+    imu_bias_m_s2=0.001,
+    imu_scale_factor=1.0e-4,
+    imu_vrw_m_s_sqrt_s=3.0e-4,
 )
 
-#: named uncertainty sets: ``none``, ``standard``, ``stress`` (3 × standard)
+#: named uncertainty sets: ``none``, ``standard``, ``stress`` (3 × standard), and one per
+#: error group of :data:`GROUPS` with ``standard``'s values of that group alone (``entry``,
+#: ``engine``, ``navigation``, ``sensors``)
 NAMED_SETS: dict[str, UncertaintyModel] = {
     "none": UncertaintyModel(name="none"),
     "standard": _STANDARD,
     "stress": dataclasses.replace(_STANDARD.scaled(3.0), name="stress"),
+    **{g: dataclasses.replace(_STANDARD.only(g), name=g) for g in GROUPS},
 }
 
 

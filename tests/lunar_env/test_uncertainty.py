@@ -15,6 +15,7 @@ import lunar_env  # noqa: F401
 from lunar_env import uncertainty as unc
 from lunar_env.integrators import integrate_reference
 from lunar_env.uncertainty import SIGMA_LIMITS, EpisodeErrors, UncertaintyModel, get_uncertainty
+from lunar_env.uncertainty.navigation import TERMINAL_SALT
 
 IDS = ("LunarSoftLanding-v0", "LunarPinpointLanding-v2")
 
@@ -27,9 +28,11 @@ IDS = ("LunarSoftLanding-v0", "LunarPinpointLanding-v2")
     ({"mass_kg": float("inf")}, "mass_kg"),
     ({"entry_position_m": (1.0, -2.0, 3.0)}, "entry_position_m[1]"),
     ({"nav_velocity_noise_m_s": (1.0, 2.0)}, "nav_velocity_noise_m_s"),
-    ({"near_ground_velocity_fraction": 1.5}, "near_ground_velocity_fraction"),
-    ({"radar_altitude_m": 0.0}, "radar_altitude_m"),
-    ({"radar_lock_fraction": -0.1}, "radar_lock_fraction"),
+    ({"sensor_position_fraction": (0.0, 0.6, 0.0)}, "sensor_position_fraction[1]"),
+    ({"sensor_altitude_m": 0.0}, "sensor_altitude_m"),
+    ({"sensor_blend_fraction": 0.0}, "sensor_blend_fraction"),
+    ({"imu_bias_m_s2": 2.0}, "imu_bias_m_s2"),
+    ({"imu_vrw_m_s_sqrt_s": -1e-3}, "imu_vrw_m_s_sqrt_s"),
     ({"thrust_scale": 0.3}, "thrust_scale"),
     ({"misalignment_rad": "0.1"}, "misalignment_rad"),
 ])
@@ -145,30 +148,56 @@ def test_every_scale_sees_the_same_standard_normals():
     np.testing.assert_array_equal(a.noise_key, b.noise_key)
 
 
-def test_terminal_sensors_cut_the_errors_at_lock_then_in_proportion_to_the_altitude():
-    # Bug fixed (issue 29): a linear blend from 100 % at lock left ~70 m of altitude error at
-    # the pinpoint env's 2 km gate. The multiplier is 1 above the lock altitude, the lock
-    # fraction there, proportional to the altitude below, and never under its floor.
+def test_terminal_sensors_errors_are_their_own_below_acquisition():
+    """Above the acquisition altitude the navigation error is the inertial solution's alone;
+    below the hand-over band it is the terminal sensors' (a fraction of the altitude plus a
+    floor, drawn from streams of their own: nothing of the inertial bias is carried across);
+    in the band, a linear blend. The compiled kernel and the NumPy formula agree."""
     m = get_uncertainty("standard")
-    h = np.array([15000.0, 3000.0 + 1e-9, 3000.0, 2000.0, 1500.0, 600.0, 10.0, 0.0, -3.0])
-    wp, wv = m.radar_weight(h)
-    lock, hr = m.radar_lock_fraction, m.radar_altitude_m
-    expect_p = [1.0, 1.0, lock, lock * 2000 / hr, lock * 1500 / hr, lock * 600 / hr] + [
-        m.near_ground_position_fraction] * 3
-    np.testing.assert_allclose(wp, expect_p, rtol=1e-12)
-    np.testing.assert_allclose(wv[2:], m.near_ground_velocity_fraction)  # 0.2 > 5 % × h/h_r
-    # ~3 m of altitude error (1σ bias) at the 2 km gate, 1 m at the surface
-    assert 3.0 < m.nav_position_bias_m[0] * wp[3] < 3.5
-    # the compiled kernel applies the same weights
+    ha = m.sensor_altitude_m
+    h = np.array([15000.0, ha, ha - 1.0, 0.95 * ha, 0.9 * ha, 2000.0, 10.0, 0.0, -3.0])
+    w = m.sensor_weight(h)
+    np.testing.assert_allclose(w, [1.0, 1.0, 1.0 / (0.1 * ha) * (0.1 * ha - 1.0), 0.5, 0.0,
+                                   0.0, 0.0, 0.0, 0.0], rtol=1e-12, atol=1e-15)
     errors = EpisodeErrors.draw(m, unc.error_stream(5))
     many = EpisodeErrors(**{f.name: np.repeat(getattr(errors, f.name), len(h), axis=0)
                             for f in dataclasses.fields(errors)})
     counters = np.zeros(len(h), dtype=np.int64)
     dpos, dvel = many.navigation_errors(m, counters, h)
     z = unc.navigation_noise(many.noise_key, counters)
-    np.testing.assert_allclose(
-        dpos[:, 0], wp * (many.nav_position_bias_m[:, 0] + z[:, 0] * m.nav_position_noise_m[0]),
-        rtol=1e-12)
+    pre = many.nav_position_bias_m[:, 0] + z[:, 0] * m.nav_position_noise_m[0]
+    zt = unc.navigation_noise(many.noise_key ^ TERMINAL_SALT, counters)
+    term = (np.maximum(h, 0.0) * (many.sensor_position_fraction[:, 0]
+                                  + zt[:, 0] * m.sensor_position_noise_fraction[0])
+            + many.sensor_position_floor_m[:, 0])
+    np.testing.assert_allclose(dpos[:, 0], w * pre + (1 - w) * term, rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(dpos[:2, 0], pre[:2])  # above: the inertial error exactly
+    # at the 2 km gate the altitude error is metres, not the inertial solution's 100 m
+    assert abs(dpos[5, 0]) < 20.0 and abs(pre[5]) > abs(dpos[5, 0])
+    # the terminal sensors' per-episode errors come from the episode's key, not the stream:
+    # the inertial draws are those of a model without sensors
+    bare = m.without("sensors")
+    e_bare = EpisodeErrors.draw(bare, unc.error_stream(5))
+    for f in ("entry_position_m", "nav_position_bias_m", "thrust_scale", "noise_key"):
+        np.testing.assert_array_equal(getattr(e_bare, f), getattr(errors, f), err_msg=f)
+    assert np.all(e_bare.sensor_position_fraction == 0) and np.all(e_bare.imu_scale == 1)
+
+
+def test_groups_isolate_and_leave_out_each_error_source():
+    std = get_uncertainty("standard")
+    for group, names in unc.GROUPS.items():
+        alone = get_uncertainty(group)
+        assert alone == dataclasses.replace(std.only(group), name=group)
+        for f in dataclasses.fields(std):
+            if f.name in ("name", "sensor_altitude_m", "sensor_blend_fraction"):
+                continue
+            kept = getattr(alone, f.name) == getattr(std, f.name)
+            assert kept == (f.name in names) or not any(np.ravel(getattr(std, f.name))), f.name
+        left = UncertaintyModel.from_dict({"base": "standard", "without": group})
+        assert left == std.without(group)
+        assert all(not any(np.ravel(getattr(left, n))) for n in names)
+    with pytest.raises(ValueError, match="unknown error group 'radar'"):
+        std.only("radar")
 
 
 def test_navigation_noise_is_a_pure_function_of_key_and_counter():
@@ -239,7 +268,7 @@ def test_batched_noise_is_the_per_lander_definition_bit_for_bit():
 def test_fused_navigation_kernel_equals_the_public_functions(env_id, name):
     # the tasks' one-pass navigation kernel against LandingTask's composition of
     # navigation_errors, altitude_m and offset_states: the same arrays, bit for bit, at
-    # altitudes above and below the radar's lock
+    # altitudes above, in and below the terminal sensors' hand-over
     from lunar_env.envs.task import LandingTask
     venv = gym.make_vec(env_id, num_envs=64, vectorization_mode="vector_entry_point",
                         uncertainty=name)
@@ -247,7 +276,7 @@ def test_fused_navigation_kernel_equals_the_public_functions(env_id, name):
     task = venv.unwrapped.task
     b = venv.unwrapped._batch
     y = b.y.copy()
-    h = np.linspace(0.0, 4000.0, 32) / task.length_ref_m  # every other lander down to 0 m
+    h = np.linspace(0.0, 6000.0, 32) / task.length_ref_m  # every other lander down to 0 m
     if task.n_axes == 2:
         y[::2, 0] = task.r_stop_nd + h
     else:
@@ -256,7 +285,7 @@ def test_fused_navigation_kernel_equals_the_public_functions(env_id, name):
     counters = np.arange(64) * 37
     got = task.navigation_states(y, b.errors, counters, b._mass_belief)
     expect = LandingTask.navigation_states(task, y, b.errors, counters, b._mass_belief)
-    assert (task.altitude_m(y) < get_uncertainty(name).radar_altitude_m).any()
+    assert (task.altitude_m(y) < 0.9 * get_uncertainty(name).sensor_altitude_m).any()
     np.testing.assert_array_equal(got, expect)
 
 
@@ -274,12 +303,10 @@ def test_observation_is_the_truth_plus_the_drawn_navigation_errors(env_id):
         truth = info["state_nd"]
         np.testing.assert_array_equal(truth, core.state_nd)
         np.testing.assert_array_equal(info["navigation_state_nd"], core.navigation_state_nd)
-        wp, wv = m.radar_weight(task.altitude_m(truth[None]))
+        assert task.altitude_m(truth[None])[0] > m.sensor_altitude_m  # inertial errors only
         z = unc.navigation_noise(e.noise_key, np.array([decision]))
-        dpos = wp[:, None] * (e.nav_position_bias_m
-                              + z[:, 0::2] * np.asarray(m.nav_position_noise_m))
-        dvel = wv[:, None] * (e.nav_velocity_bias_m_s
-                              + z[:, 1::2] * np.asarray(m.nav_velocity_noise_m_s))
+        dpos = (e.nav_position_bias_m + z[:, 0::2] * np.asarray(m.nav_position_noise_m))
+        dvel = (e.nav_velocity_bias_m_s + z[:, 1::2] * np.asarray(m.nav_velocity_noise_m_s))
         if task.n_axes == 2:  # planar: no crossrange
             dpos[:, 2] = dvel[:, 2] = 0.0
         expect = task.offset_states(truth[None], dpos, dvel, -e.mass_error_kg)[0]
@@ -422,8 +449,7 @@ def test_error_scale_multiplies_every_error_of_the_episodes_that_start_after_it(
             np.testing.assert_allclose(getattr(ek, f) - 1.0, k * (getattr(e1, f) - 1.0),
                                        rtol=1e-12, atol=1e-15, err_msg=f)
         nav = core.navigation_state_nd - core.state_nd
-        # the same planned starts: the navigation offsets shrink with the scale (the radar
-        # weight depends on the true altitude, which the scaled entry error moves a little)
+        # the same planned starts: the navigation offsets shrink with the scale
         assert np.abs(nav).max() <= max(k, 1e-12) * 1.01 * np.abs(nav1).max()
         if k == 0.0:  # no error at all: the env without the model, bit for bit
             plain = gym.make_vec(env_id, 3, vectorization_mode="vector_entry_point")
