@@ -53,7 +53,7 @@ from typing import Any
 import yaml
 
 __all__ = [
-    "ALGOS", "PROFILE_SEPARATOR", "REMOVED_KEYS", "RUN_KEYS", "apply_overrides",
+    "ALGOS", "PROFILE_SEPARATOR", "RUN_KEYS", "apply_overrides",
     "default_hyperparams_path",
     "load_hyperparams",
     "parse_override", "resolve_algo_kwargs", "linear_schedule",
@@ -66,12 +66,6 @@ RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "noise_type", "noise
             "env_kwargs", "curriculum", "error_curriculum", "obs_features", "reward_shaping",
             "critic_warmup_steps", "added_action_init",
             "select_checkpoint", "seed_race")
-#: keys of earlier versions, refused with the reason they were removed
-REMOVED_KEYS = {
-    "noise_anneal": "removed in issue 28: measured on six pinpoint seeds without a net gain "
-                    "(docs/notes/issue-16.md, 'The exploration noise annealed at the end'); drop "
-                    "the key",
-}
 
 _ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU",
                 "gelu": "GELU", "silu": "SiLU"}
@@ -250,6 +244,23 @@ def _resolve_policy_kwargs(pk: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _check_keys(hp: Mapping[str, Any], algo: str) -> None:
+    import inspect
+
+    from stable_baselines3 import PPO, SAC, TD3
+
+    classes = {"ppo": PPO, "sac": SAC, "td3": TD3}
+    if algo not in classes:
+        raise ValueError(f"algo={algo!r} is not supported; choose one of {ALGOS}")
+    cls = classes[algo]
+    params = set(inspect.signature(cls.__init__).parameters)
+    allowed = (params - {"self", "env", "_init_setup_model"}) | set(RUN_KEYS)
+    unknown = sorted(map(str, set(hp) - allowed))
+    if unknown:
+        raise ValueError(f"{algo} hyperparameters: unknown key(s) {unknown}; allowed: the run "
+                         f"keys {list(RUN_KEYS)} and the arguments of {cls.__name__}")
+
+
 def resolve_algo_kwargs(hp: Mapping[str, Any], algo: str, n_actions: int | None = None
                         ) -> dict[str, Any]:
     """Turn YAML hyperparameters into keyword arguments for the SB3 algorithm constructor.
@@ -269,12 +280,11 @@ def resolve_algo_kwargs(hp: Mapping[str, Any], algo: str, n_actions: int | None 
     Raises
     ------
     ValueError
-        A key of :data:`REMOVED_KEYS` is set (the message says why it was removed).
+        A key is neither a run key nor an argument of the algorithm's constructor (refused
+        here, before a run directory is made, rather than when the algorithm is built).
     """
     algo = algo.lower()
-    for key, why in REMOVED_KEYS.items():
-        if key in hp:
-            raise ValueError(f"{key}={hp[key]!r}: {why}")
+    _check_keys(hp, algo)
     out: dict[str, Any] = {k: copy.deepcopy(v) for k, v in hp.items() if k not in RUN_KEYS}
     for key in ("learning_rate", "clip_range", "clip_range_vf"):
         if key in out and out[key] is not None:

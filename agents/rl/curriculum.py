@@ -163,11 +163,6 @@ class OptimalStartCurriculum(VecEnvWrapper):
             obs = self._restart(idx, obs)
         return obs, rew, done, infos
 
-    def curriculum_info(self) -> dict[str, Any]:
-        return {"p": self.current_prob,
-                "curriculum_starts": self.n_curriculum_starts,
-                "starts": self.n_starts}
-
 
 class ErrorScaleCurriculum(VecEnvWrapper):
     """Anneal the env's plant and navigation errors in: every σ of its uncertainty model is

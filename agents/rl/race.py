@@ -55,17 +55,13 @@ def race_settings(hp: dict[str, Any]) -> int | None:
     Raises
     ------
     ValueError
-        ``candidates`` is not an integer >= 2, or the entry has another key (``decide_at``, of
-        earlier versions, is named as removed).
+        ``candidates`` is not an integer >= 2, or the entry has another key.
     """
     spec = hp.get("seed_race")
     if not spec:
         return None
     from lunar_env.validation import require_number, require_option_keys
 
-    if hasattr(spec, "keys") and "decide_at" in spec:
-        raise ValueError(f"seed_race decide_at={spec['decide_at']!r}: removed in issue 28 (the "
-                         "race is decided at the end); drop the key")
     require_option_keys("seed_race", spec, ("candidates",))
     k = require_number("seed_race candidates", spec.get("candidates", 2))
     if k != int(k) or k < 2:

@@ -48,14 +48,16 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
+from stable_baselines3.common.callbacks import BaseCallback
 
-__all__ = ["sample_ppo_params", "score", "run_trial", "optimize", "make_storage",
-           "best_entry"]
+__all__ = ["sample_ppo_params", "score", "TrialEvalCallback", "run_trial", "optimize",
+           "make_storage", "best_entry"]
 
 _TUNE_SEED = 7
 
@@ -140,6 +142,58 @@ def _pruner(name: str, n_startup: int, n_evaluations: int):
     raise ValueError(f"pruner = {name!r}; use 'median', 'halving' or 'none'")
 
 
+class TrialEvalCallback(BaseCallback):
+    """Score the policy during a trial, report each score to Optuna and stop the training when
+    the pruner says so (the RL Zoo's ``TrialEvalCallback``).
+
+    Parameters
+    ----------
+    trial : optuna.Trial
+        The trial the scores are reported to (``trial.report(score, k)``, k = 1, 2, ...).
+    evaluate : callable
+        ``evaluate(model) -> float``: the score of the model's policy (higher is better).
+    eval_every : int
+        Env steps between evaluations: one at the first step at or past each multiple of it
+        (at most one a step).
+    n_evaluations : int
+        Evaluations planned; the trial is never pruned at the last one (its score is the
+        trial's value).
+
+    Attributes
+    ----------
+    n_evals : int
+        Evaluations made.
+    last : float
+        The last score (``-inf`` before the first).
+    pruned : bool
+        The pruner stopped the training.
+    """
+
+    def __init__(self, trial, evaluate: Callable[[Any], float], eval_every: int,
+                 n_evaluations: int, verbose: int = 0) -> None:
+        super().__init__(verbose)
+        self.trial = trial
+        self.evaluate = evaluate
+        self.eval_every = int(eval_every)
+        self.n_evaluations = int(n_evaluations)
+        self.next_eval = self.eval_every
+        self.n_evals = 0
+        self.last = -math.inf
+        self.pruned = False
+
+    def _on_step(self) -> bool:
+        if self.model.num_timesteps < self.next_eval:
+            return True
+        self.next_eval += self.eval_every
+        self.n_evals += 1
+        self.last = self.evaluate(self.model)
+        self.trial.report(self.last, self.n_evals)
+        if self.n_evals < self.n_evaluations and self.trial.should_prune():
+            self.pruned = True
+            return False
+        return True
+
+
 def run_trial(storage_url: str, study_name: str, index: int, hp_base: dict, run_base: dict,
               out_dir: str, search: dict) -> dict[str, Any]:
     """One trial (an executor task): ask the study for parameters, train, report, tell.
@@ -147,7 +201,6 @@ def run_trial(storage_url: str, study_name: str, index: int, hp_base: dict, run_
     Returns ``{"index", "number", "state", "value", "params", "hyperparams", "run_dir"}``.
     """
     import optuna
-    from stable_baselines3.common.callbacks import BaseCallback
 
     from agents.hyperparams import apply_overrides
     from agents.laws import SB3Law
@@ -178,34 +231,14 @@ def run_trial(storage_url: str, study_name: str, index: int, hp_base: dict, run_
                       hp.get("env_kwargs"), trace_cases=0)
         return score(res.is_success, res.fuel_used_kg, res.touchdown_speed_m_s)
 
-    class TrialEval(BaseCallback):
-        def __init__(self) -> None:
-            super().__init__()
-            self.next_eval = eval_every
-            self.step = 0
-            self.pruned = False
-            self.last = -math.inf
-
-        def _on_step(self) -> bool:
-            if self.model.num_timesteps < self.next_eval:
-                return True
-            self.next_eval += eval_every
-            self.step += 1
-            self.last = evaluate(self.model)
-            trial.report(self.last, self.step)
-            if self.step < n_eval and trial.should_prune():
-                self.pruned = True
-                return False
-            return True
-
-    cb = TrialEval()
+    cb = TrialEvalCallback(trial, evaluate, eval_every, n_eval)
     try:
         model, _ = train(hp, run, run_dir, callbacks=[cb])
         if cb.pruned:
             study.tell(trial, state=optuna.trial.TrialState.PRUNED)
             state, value = "PRUNED", cb.last
         else:
-            value = evaluate(model) if cb.step < n_eval else cb.last
+            value = evaluate(model) if cb.n_evals < n_eval else cb.last
             study.tell(trial, value)
             state = "COMPLETE"
     except Exception:

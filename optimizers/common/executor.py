@@ -414,13 +414,34 @@ def get_executor(address: str | None = None, n_workers: int | None = None, **kwa
     :class:`RayExecutor`; otherwise :class:`LocalExecutor` with ``n_workers`` processes
     (``--workers``; default all cores, 0 in-process). ``address="local"`` starts a private Ray
     instance on this machine (with ``num_cpus=n_workers`` when given).
+
+    Raises
+    ------
+    ValueError
+        The address is none of ``local``, ``auto``, ``host:port`` (port 1–65535) or
+        ``ray://…`` (checked before Ray is imported or contacted).
     """
-    address = address or os.environ.get(RAY_ADDRESS_ENV)
+    source = "--address"
+    if not address and os.environ.get(RAY_ADDRESS_ENV):
+        address, source = os.environ[RAY_ADDRESS_ENV], f"${RAY_ADDRESS_ENV}"
     if address:
+        _check_ray_address(address, source)
         if address == "local" and n_workers:
             kwargs.setdefault("num_cpus", int(n_workers))
         return RayExecutor(address, **kwargs)
     return LocalExecutor(n_workers, **{k: v for k, v in kwargs.items() if k == "max_retries"})
+
+
+def _check_ray_address(address: str, source: str) -> None:
+    if address in ("local", "auto") or address.startswith("ray://"):
+        return
+    host, sep, port = address.rpartition(":")
+    if sep and host and port.isdigit() and 0 < int(port) < 65536:
+        return
+    raise ValueError(f"{source} = {address!r} is not a Ray address: use 'local' (a private "
+                     "instance on this machine), 'auto' (the cluster this machine belongs to), "
+                     "'host:port' or 'ray://host:port'; without an address the local process "
+                     "pool is used")
 
 
 # ----------------------------------------------------------------------------- results
@@ -436,10 +457,6 @@ class RunReport:
     n_done: int
     wall_s: float
     executor: str
-
-    @property
-    def tasks_per_s(self) -> float:
-        return self.n_done / self.wall_s if self.wall_s > 0 else math.nan
 
 
 def run_tasks(tasks: Iterable[Task], executor: Executor | None = None,

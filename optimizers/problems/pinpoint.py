@@ -31,7 +31,6 @@ converted at the edges by :class:`lunar_env.scaling.Scaling`.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -163,14 +162,6 @@ class PinpointOCP(OCP):
         """Shared right-hand side on CasADi symbols, throttle fixed at 1: (7,), (2,) -> (7,)."""
         ca = _ca()
         return dyn.moon3d_rhs_casadi(state, ca.vertcat(control[0], control[1], 1.0), self.params)
-
-    @functools.cached_property
-    def rhs_function(self):
-        """``casadi.Function('f', [x (7), u (2)], [dx (7)])`` built from the shared rhs."""
-        ca = _ca()
-        x = ca.SX.sym("x", 7)
-        u = ca.SX.sym("u", 2)
-        return ca.Function("moon3d_f", [x, u], [self.rhs(x, u)], ["x", "u"], ["dx"])
 
     def uw(self, state):
         """Radial u and cross-track w relative velocity (normalised) of a symbolic state.

@@ -77,11 +77,6 @@ class PlanarOCP(OCP):
         """The same problem from another SI initial state."""
         return PlanarOCP(self.scenario, initial_state_si)
 
-    def with_initial_state_nd(self, x0_nd: np.ndarray) -> PlanarOCP:
-        """The same problem from a normalised initial state (validated in SI)."""
-        return PlanarOCP(self.scenario, self.scenario.nd_to_si(np.asarray(x0_nd, float),
-                                                               self._scaling))
-
     # ---- the OCP contract -----------------------------------------------------------------
     @property
     def scaling(self):

@@ -83,16 +83,21 @@ def test_structural_resolution():
         resolve_algo_kwargs({"noise_type": "normal"}, "ppo")
 
 
-def test_removed_keys_are_refused_with_the_reason():
-    """noise_anneal (issue 28) is neither a run key nor passed on to PPO: a config that still
-    sets it is refused by name, pointing at the measurements."""
+def test_unknown_keys_are_refused_before_the_algorithm_is_built():
+    """A key that is neither a run key nor an argument of the algorithm's constructor (a typo,
+    or an option no longer offered such as ``noise_anneal``) is refused by name, per
+    algorithm: ``gae_lambda`` is a PPO argument, not a TD3 one."""
     anneal = {"start_fraction": 0.7, "final_log_std": -5.0}
-    with pytest.raises(ValueError, match=r"noise_anneal=.*issue-16\.md"):
+    with pytest.raises(ValueError, match=r"ppo hyperparameters: unknown key\(s\) "
+                                         r"\['noise_anneal'\]"):
         resolve_algo_kwargs({"n_steps": 64, "noise_anneal": anneal}, "ppo")
+    assert resolve_algo_kwargs({"n_steps": 64, "n_envs": 2}, "ppo") == {"n_steps": 64}
+    with pytest.raises(ValueError, match=r"unknown key\(s\) \['gae_lambda'\]"):
+        resolve_algo_kwargs({"gae_lambda": 0.95}, "td3")
     for algo in ALGOS:
         for env_id in ENV_IDS:
-            hp = load_hyperparams(default_hyperparams_path(algo), env_id)
-            assert "noise_anneal" not in hp
+            resolve_algo_kwargs(load_hyperparams(default_hyperparams_path(algo), env_id), algo,
+                                n_actions=1)
 
 
 def test_cli_overrides_parse_yaml_values_and_dotted_keys():

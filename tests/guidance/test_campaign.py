@@ -3,6 +3,7 @@ the JSON contract; the command line."""
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 
@@ -48,14 +49,27 @@ def test_contract_and_files(reference_run):
     assert s["cases"] == 4 and s["seed"] == 3
     law = s["laws"]["open-loop"]
     assert CONTRACT_KEYS <= set(law)
-    assert 0.0 <= law["success_rate"] <= 1.0
-    lo, hi = law["success_ci95"]
-    assert lo <= law["success_rate"] <= hi
     assert [p["scale"] for p in s["robustness_curve"]["open-loop"]] == [0.0, 1.0]
     # at zero error the open-loop optimum lands every case
     assert s["robustness_curve"]["open-loop"][0]["success_rate"] == 1.0
     rows = (out / "cases.csv").read_text().splitlines()
     assert len(rows) == 1 + 4 and rows[0].startswith("law,case,success")
+    # the rate is the share of the cases landed, and its interval the Wilson score interval
+    # of that count (z = 1.96), computed here from the per-case rows
+    cases = list(csv.DictReader(rows))
+    assert [c["law"] for c in cases] == ["open-loop"] * 4
+    k = sum(c["success"] == "True" for c in cases)
+    assert law["successes"] == k and law["success_rate"] == k / 4
+    assert law["success_rate"] == np.mean(res.cases["open-loop"]["success"])
+    z, n = 1.959963984540054, 4
+    centre = (k / n + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(k / n * (1 - k / n) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    want = (0.0 if k == 0 else centre - half, 1.0 if k == n else centre + half)
+    np.testing.assert_allclose(law["success_ci95"], want, rtol=0.0, atol=1e-12)
+    # the curve at scale 1 flies the first two cases again: their outcomes
+    at_one = s["robustness_curve"]["open-loop"][1]
+    assert at_one["cases"] == 2
+    assert at_one["success_rate"] == sum(c["success"] == "True" for c in cases[:2]) / 2
     for f in ("touchdown_speed_cdf.png", "fuel_gap_vs_speed.png", "robustness.png"):
         assert (out / f).stat().st_size > 1000
     assert "open-loop" in format_table(s)

@@ -65,20 +65,34 @@ class Teacher(PrivilegedLaw):
 
 
 def test_a_new_law_is_flown_by_the_evaluation_beside_the_baselines():
-    rep = compare(ENV_ID, [ConstantAttitude([0.2])], n_states=3, seed=11, n_expert_states=0,
-                  progress=False)
+    """Each new law's row is that law's own flight of the evaluation's cases: one that crashes
+    everywhere (a fixed attitude) and one that lands (ZEM/ZEV), beside the baselines."""
+    from guidance.explicit import K_R_ZEM_ZEV
+    from guidance.laws.apollo import AugmentedApolloLaw
+
+    new_laws = (lambda: ConstantAttitude([0.2]),
+                lambda: AugmentedApolloLaw(k_r=K_R_ZEM_ZEV, name="zem-zev"))
+    rep = compare(ENV_ID, [make() for make in new_laws], n_states=3, seed=11,
+                  n_expert_states=0, progress=False)
     names = [r["policy"] for r in rep["rows"]]
     # the random law flies last: the normalised score's 0 reference
-    assert names == ["constant attitude", "Pontryagin open loop", "random"]
-    row = rep["rows"][0]
-    assert row["n_cases"] == 3 and 0.0 <= row["success_rate"] <= 1.0
+    assert names == ["constant attitude", "zem-zev", "Pontryagin open loop", "random"]
+    # the same cases flown directly (case i: sub-env seeded 11 + i)
+    n_landed = []
+    for row, make in zip(rep["rows"][:2], new_laws, strict=True):
+        own = fly(ENV_ID, make(), 3, seed=11)
+        n_landed.append(int(np.sum(own.is_success)))
+        assert row["n_cases"] == 3 and row["success_rate"] * 3 == n_landed[-1]
+        assert row["fuel_mean_kg"] == float(np.nanmean(own.fuel_used_kg)) > 0.0
+        assert row["return_mean"] == float(np.mean(own.episode_return))
+        assert row["n_cases_in_score"] == 3
+    assert n_landed == [0, 3]
     # the open-loop optimum lands every case at the optimum's fuel
-    assert rep["rows"][1]["success_rate"] == 1.0
-    assert abs(rep["rows"][1]["fuel_gap_pct"]) < 0.05
+    assert rep["rows"][2]["success_rate"] == 1.0
+    assert abs(rep["rows"][2]["fuel_gap_pct"]) < 0.05
     # score: the optimum's replay is 100 and the random law 0 by definition
-    assert rep["rows"][1]["score"] == pytest.approx(100.0)
-    assert rep["rows"][2]["score"] == pytest.approx(0.0)
-    assert rep["rows"][0]["n_cases_in_score"] == 3
+    assert rep["rows"][2]["score"] == pytest.approx(100.0)
+    assert rep["rows"][3]["score"] == pytest.approx(0.0)
 
 
 def test_an_ordinary_law_gets_the_flight_computer_and_navigation_only():

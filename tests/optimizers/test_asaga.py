@@ -173,13 +173,46 @@ def test_trajectory_on_request_and_progress(problem, capsys):
     assert tr is not None and tr.t_s[-1] == pytest.approx(res.tf_s)
 
 
-def test_pygmo_uda(problem):
+class CountedLanding(PlanarLandingProblem):
+    """The planar landing problem, recording the size of every batch it evaluates."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.batches: list[int] = []
+
+    def _batch_fitness(self, X):
+        self.batches.append(len(X))
+        return super()._batch_fitness(X)
+
+
+def test_pygmo_uda():
+    """``pygmo.algorithm(ASAGA).evolve``: the evolved population's best penalised fitness beats
+    the initial population's, and the problem's ``n_fevals`` counts every evaluation: pygmo's
+    initial population (one by one), the run's initial population, per generation the 20
+    children and then the annealing moves of the n0 = 2 best children (batches of at most 2,
+    at most n_inner_max + 1 moves each), and the final population written back."""
     import pygmo as pg
 
-    algo = pg.algorithm(ASAGA(n_generations=5))
-    pop = pg.population(problem.to_pygmo(), size=20, seed=2)
-    pop = algo.evolve(pop)
-    assert len(pop) == 20 and np.all(np.isfinite(pop.get_f()))
+    from optimizers.common.problem import PygmoProblem
+
+    uda = ASAGA(n_generations=5)
+    uda.set_seed(3)
+    pop = pg.population(CountedLanding().to_pygmo(), size=20, seed=2)
+    F0 = pop.get_f().copy()
+    pop = pg.algorithm(uda).evolve(pop)
+    assert len(pop) == 20
+    p = pop.problem.extract(PygmoProblem).problem  # pygmo evolves its own copy
+    assert p.n_fevals == sum(p.batches)
+    b = p.batches
+    assert b[:21] == [1] * 20 + [20] and b[-1] == 20
+    gens = np.flatnonzero(np.array(b[21:-1]) == 20)
+    assert len(gens) == 5 and gens[0] == 0
+    for anneal in np.split(np.array(b[21:-1]), gens[1:]):
+        moves = anneal[1:]
+        assert 1 <= len(moves) <= uda.n_inner_max + 1 and np.all(moves <= uda.n_anneal)
+        assert uda.n_anneal <= moves.sum() <= uda.n_anneal * (uda.n_inner_max + 1)
+    F = pop.get_f()
+    assert uda.fitness(p, F, 5).max() > uda.fitness(p, F0, 5).max()
 
 
 def test_bad_settings_raise():

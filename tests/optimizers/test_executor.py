@@ -134,11 +134,90 @@ def test_store_validate_marks_incomplete_entries_damaged(tmp_path, capsys):
     assert key in store
 
 
-def test_get_executor_selection(monkeypatch):
+@pytest.fixture
+def fake_ray(monkeypatch):
+    """Ray's entry points replaced: ``ray.init`` records its arguments and reports a cluster of
+    3 CPUs; no instance is started or contacted. Yields the list of ``ray.init`` calls."""
+    import ray
+
+    calls = []
+    state = {"up": False}
+
+    def init(address=None, **kw):
+        calls.append({"address": address, **kw})
+        state["up"] = True
+
+    def shutdown():
+        state["up"] = False
+
+    class _Remote:
+        def options(self, **kw):
+            return self
+
+    monkeypatch.setattr(ray, "init", init)
+    monkeypatch.setattr(ray, "shutdown", shutdown)
+    monkeypatch.setattr(ray, "is_initialized", lambda: state["up"])
+    monkeypatch.setattr(ray, "cluster_resources", lambda: {"CPU": 3.0})
+    monkeypatch.setattr(ray, "remote", lambda fn: _Remote())
     monkeypatch.delenv("RAY_ADDRESS", raising=False)
-    ex = get_executor(None, 2)
-    assert isinstance(ex, LocalExecutor) and ex.n_workers == 2
-    ex.close()
+    yield calls
+
+
+def test_get_executor_without_an_address_is_the_local_pool(fake_ray):
+    with get_executor(None, 2) as ex:
+        assert isinstance(ex, LocalExecutor) and ex.n_workers == 2
+        assert ex.describe() == "local process pool (2 workers)"
+    with get_executor(None, None) as ex:  # default: every core
+        assert isinstance(ex, LocalExecutor) and ex.n_workers == (os.cpu_count() or 1)
+    with get_executor(None, 2, max_retries=5) as ex:
+        assert ex.max_retries == 5
+    assert fake_ray == []  # Ray never initialised
+
+
+def test_get_executor_with_zero_workers_runs_in_process(fake_ray):
+    with get_executor(None, 0) as ex:
+        assert isinstance(ex, LocalExecutor) and ex.n_workers == 0
+        assert ex.describe() == "in-process (no workers)"
+        res, rep = run_tasks([Task(TaskKey("p", 0, 0), pt.noop, (4,))], ex)
+    assert rep.n_done == 1 and fake_ray == []
+
+
+def test_get_executor_from_the_ray_address_variable(fake_ray, monkeypatch):
+    from optimizers.common.executor import RayExecutor
+
+    monkeypatch.setenv("RAY_ADDRESS", "10.0.0.5:6379")
+    with get_executor(None, 2) as ex:  # the variable wins over the local pool
+        assert isinstance(ex, RayExecutor) and ex.address == "10.0.0.5:6379"
+        assert ex.n_workers == 3 and ex.describe() == "Ray at 10.0.0.5:6379 (3 CPUs)"
+    assert [c["address"] for c in fake_ray] == ["10.0.0.5:6379"]
+    assert "num_cpus" not in fake_ray[0]  # a cluster's CPUs are its own
+    with get_executor("auto", 2) as ex:  # an explicit address wins over the variable
+        assert ex.address == "auto"
+    assert fake_ray[-1]["address"] == "auto"
+
+
+def test_get_executor_local_address_starts_a_private_ray(fake_ray):
+    from optimizers.common.executor import RayExecutor
+
+    with get_executor("local", 2) as ex:
+        assert isinstance(ex, RayExecutor) and ex.address == "local"
+    with get_executor("local", None):
+        pass
+    # the workers given become the private instance's CPUs
+    assert [(c["address"], c.get("num_cpus")) for c in fake_ray] == [("local", 2),
+                                                                      ("local", None)]
+
+
+@pytest.mark.parametrize("bad", ["nonsense", "127.0.0.1", "host:port", ":6379", "host:0",
+                                 "host:70000"])
+def test_get_executor_refuses_a_bad_address_before_contacting_ray(fake_ray, monkeypatch, bad):
+    with pytest.raises(ValueError, match=rf"--address = '{bad}' is not a Ray address: use "
+                                         r"'local'.*'auto'.*'host:port' or 'ray://host:port'"):
+        get_executor(bad, 2)
+    monkeypatch.setenv("RAY_ADDRESS", bad)
+    with pytest.raises(ValueError, match=rf"\$RAY_ADDRESS = '{bad}' is not a Ray address"):
+        get_executor(None, 2)
+    assert fake_ray == []
 
 
 # ----------------------------------------------------------------------------- local pool

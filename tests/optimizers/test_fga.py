@@ -106,13 +106,36 @@ def test_seeded_deterministic_and_resume(tmp_path):
     assert set(r1.terminal_errors) >= {"speed_m_s", "radius_m"}
 
 
+class CountedThrustDesign(ThrustDesignProblem):
+    """The thrust-design problem, recording the size of every batch it evaluates."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.batches: list[int] = []
+
+    def _batch_fitness(self, X):
+        self.batches.append(len(X))
+        return super()._batch_fitness(X)
+
+
 def test_pygmo_uda():
+    """``pygmo.algorithm(FGA).evolve``: the evolved population's best penalised fitness beats
+    the initial population's, the fitness written back is that of the individuals, and the
+    problem's ``n_fevals`` counts every evaluation: pygmo's initial population (one by one),
+    then the run's (its initial population, then the 10 children of each generation, the 10
+    elite being carried), then the final population written back."""
     import pygmo as pg
 
-    p = ThrustDesignProblem()
-    pop = pg.population(p.to_pygmo(), size=20, seed=1)
+    from optimizers.common.problem import PygmoProblem
+
+    pop = pg.population(CountedThrustDesign().to_pygmo(), size=20, seed=1)
+    F0 = pop.get_f().copy()
     algo = FGA(n_generations=30)
     algo.set_seed(4)
     pop = pg.algorithm(algo).evolve(pop)
-    f0 = pop.champion_f
-    assert np.all(np.isfinite(f0))
+    p = pop.problem.extract(PygmoProblem).problem  # pygmo evolves its own copy
+    assert p.batches == [1] * 20 + [20] + [10] * 30 + [20]
+    assert p.n_fevals == 20 + (20 + 30 * 10) + 20 == sum(p.batches)
+    F = pop.get_f()
+    assert algo.fitness(p, F, 30).max() > algo.fitness(p, F0, 30).max()
+    np.testing.assert_array_equal(F, p.batch_fitness(pop.get_x()))

@@ -31,7 +31,6 @@ from optimizers.optimum import plant_scenario
 
 __all__ = ["LABEL_RULE", "OBSERVATION_NAMES", "TEACHERS", "trajectory_samples", "replay_labels",
            "planar_shard", "planar_dataset_recipe", "rollout_policy", "check_teacher",
-           "check_planning_thrust_scale",
            "teacher_view", "label_chunk", "label_episodes", "planar_dagger_iteration"]
 
 LABEL_RULE = "action_from_thrust_angle(phi*(t_k + dt_s/2)), t_k = k*dt_s < tf"
@@ -212,19 +211,6 @@ def check_teacher(teacher: str) -> str:
     return teacher
 
 
-def check_planning_thrust_scale(value) -> float:
-    """``value`` as a float if it is a finite factor in (0.5, 1.5], else ValueError."""
-    try:
-        k = float(value)
-    except (TypeError, ValueError):
-        k = float("nan")
-    if not (0.5 < k <= 1.5):
-        raise ValueError(f"dagger planning_thrust_scale = {value!r} must be a number in "
-                         "(0.5, 1.5]: the factor on the teacher's engine thrust that it plans "
-                         "with (1: its own engine; below 1: a margin for a weaker engine)")
-    return k
-
-
 def teacher_view(episode: dict[str, Any], teacher: str) -> tuple[np.ndarray, float, float]:
     """What ``teacher`` knows of one roll-out: the states it plans from (T, 5), normalised,
     and the plant's thrust and Isp scales (true / nominal).
@@ -265,22 +251,16 @@ def label_chunk(job: dict[str, Any]) -> list[dict[str, np.ndarray]]:
     and the pinpoint roll-outs' :class:`agents.imitation.families.pinpoint.DaggerRolloutTeacher`);
     ``navigated``, the navigation solutions the student saw and the nominal engine. The SI
     states come from the nominal scaling, which the plant does not change. The labels pair
-    the student's observations ``obs`` with the teacher's actions. ``planning_thrust_scale``
-    (default 1) multiplies the teacher's thrust in its plans: a factor below 1 plans for a
-    weaker engine than it believes it has, a margin against thrust errors."""
+    the student's observations ``obs`` with the teacher's actions."""
     from optimizers.indirect.planar import release_solvers
 
     sc = get_scenario(job["scenario"])
     dt_s = float(job["dt_s"])
     teacher = check_teacher(job.get("teacher", TEACHERS[0]))
-    margin = check_planning_thrust_scale(job.get("planning_thrust_scale", 1.0))
     res = []
     for ep in job["episodes"]:
         states_nd, thrust_scale, isp_scale = teacher_view(ep, teacher)
-        # the teacher plans with its engine's thrust times the margin factor (issue 31: the
-        # fuel-optimal plan brakes at full thrust to zero speed, so an engine weaker than
-        # planned cannot stop; planning for a weaker one leaves the difference in hand)
-        plant = plant_scenario(sc, thrust_scale * margin, isp_scale)
+        plant = plant_scenario(sc, thrust_scale, isp_scale)
         expert = PontryaginExpert(plant)
         idx = ep["label_idx"]
         si = planar_state_si(sc, states_nd[idx])
@@ -322,16 +302,14 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
                    progress: bool = True, min_speed_m_s: float = 3.0,
                    velocity_ref_m_s: float | None = None,
                    cache_dir: str | Path | None = None,
-                   tail_label_every: int = 1, teacher: str = TEACHERS[0],
-                   planning_thrust_scale: float = 1.0
+                   tail_label_every: int = 1, teacher: str = TEACHERS[0]
                    ) -> dict[str, np.ndarray]:
     """Expert labels for the visited states of planar policy roll-outs.
 
     ``teacher`` (:data:`TEACHERS`): whose view the expert plans from (:func:`label_chunk`,
     :func:`teacher_view`): ``privileged`` (default), the true states and the lander's true
     plant; ``navigated``, the navigation solutions and the nominal plant. The episodes are
-    those of :func:`rollout_policy`. ``planning_thrust_scale``: the factor on the teacher's
-    thrust in its plans (1; below 1 a margin for a weaker engine, :func:`label_chunk`).
+    those of :func:`rollout_policy`.
 
     Every ``label_every``-th step of each episode and every step in its last ``dense_tail_s``
     seconds (where landing accuracy is decided) is labelled, in time order per episode so the
@@ -357,13 +335,12 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
     Raises
     ------
     ValueError
-        ``scenario_name`` is not a planar scenario, ``teacher`` is not one of
-        :data:`TEACHERS`, or ``planning_thrust_scale`` is outside (0.5, 1.5].
+        ``scenario_name`` is not a planar scenario, or ``teacher`` is not one of
+        :data:`TEACHERS`.
     """
     from optimizers.common.executor import LocalExecutor, ResultStore, Task, TaskKey, run_tasks
 
     check_teacher(teacher)
-    margin = check_planning_thrust_scale(planning_thrust_scale)
     if not isinstance(get_scenario(scenario_name), PlanarScenario):
         raise ValueError(f"scenario {scenario_name!r} is not a planar scenario: its DAgger data "
                          "comes from its own family (guidance.families.family_of)")
@@ -390,7 +367,7 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
     # one task per few episodes: the pool balances the load and the bar moves as tasks finish
     per_task = max(1, min(4, len(jobs_eps) // (4 * n_workers) or 1))
     jobs = [{"scenario": scenario_name, "dt_s": dt_s, "teacher": teacher,
-             "planning_thrust_scale": margin, "episodes": jobs_eps[i:i + per_task]}
+             "episodes": jobs_eps[i:i + per_task]}
             for i in range(0, len(jobs_eps), per_task)]
     store = None if cache_dir is None else ResultStore(
         cache_dir, identity={"scenario": scenario_name, "dt_s": float(dt_s),
@@ -398,9 +375,7 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
                              "dense_tail_s": float(dense_tail_s),
                              "tail_label_every": int(tail_label_every),
                              "min_speed_m_s": float(min_speed_m_s), "teacher": teacher,
-                             "n_episodes": len(jobs_eps), "n_tasks": len(jobs),
-                             # only when set: the stores of runs without a margin keep theirs
-                             **({} if margin == 1.0 else {"planning_thrust_scale": margin})},
+                             "n_episodes": len(jobs_eps), "n_tasks": len(jobs)},
         fmt="pickle")
     tasks = [Task(TaskKey(f"dagger-labels-{scenario_name}", 0, i), label_chunk, (job,))
              for i, job in enumerate(jobs)]
@@ -423,8 +398,8 @@ def planar_dagger_iteration(scenario, request: DaggerRequest
     dagger_iteration`): the policy flies alone (deterministic) from ``n_episodes`` dispersed
     starts (under the request's ``env_kwargs``, e.g. an ``uncertainty`` model), then
     :func:`label_episodes` labels the visited states (settings ``teacher`` (:data:`TEACHERS`,
-    default ``privileged``), ``planning_thrust_scale`` (1), ``label_every``,
-    ``dense_tail_s``, ``min_label_speed_m_s`` (default 3 m/s), ``tail_label_every`` (1)).
+    default ``privileged``), ``label_every``, ``dense_tail_s``, ``min_label_speed_m_s``
+    (default 3 m/s), ``tail_label_every`` (1)).
 
     Raises
     ------
@@ -433,7 +408,6 @@ def planar_dagger_iteration(scenario, request: DaggerRequest
     """
     dg = request.settings
     teacher = check_teacher(dg.get("teacher", TEACHERS[0]))
-    margin = check_planning_thrust_scale(dg.get("planning_thrust_scale", 1.0))
     t0 = time.perf_counter()
     learner = request.load_learner(request.policy_file, request.env_id, request.env_kwargs,
                                    request.obs_features)
@@ -450,7 +424,7 @@ def planar_dagger_iteration(scenario, request: DaggerRequest
                          velocity_ref_m_s=scenario.scaling().velocity_m_s,
                          cache_dir=request.store_dir,
                          tail_label_every=int(dg.get("tail_label_every", 1)),
-                         teacher=teacher, planning_thrust_scale=margin)
+                         teacher=teacher)
     roll["label_wall_s"] = time.perf_counter() - t0
     return lab, roll
 

@@ -1,4 +1,4 @@
-"""The planar DAgger's two teachers (issue 31): ``privileged`` (true state, true plant) and
+"""The planar DAgger's two teachers: ``privileged`` (true state, true plant) and
 ``navigated`` (the student's navigation solution, nominal plant), on short roll-outs under
 uncertainty models that isolate one kind of error; and the run's env arguments."""
 
@@ -161,29 +161,6 @@ def test_run_env_kwargs_merge_over_the_dataset_and_keep_its_decision_interval():
         run_env_kwargs(ENV_ID, {}, {"dt_s": 2.5, "uncertainty": "standard"})
     with pytest.raises(ValueError, match="must be a mapping"):
         run_env_kwargs(ENV_ID, {}, "standard")
-
-
-def test_planning_thrust_margin_plans_for_a_weaker_engine():
-    """``planning_thrust_scale`` k: the teacher plans with its engine's thrust times k. In the
-    nominal world with k = 0.97 the labels are the expert's on a 3 % weaker engine, which
-    brakes differently from the nominal one; k = 1 is the teacher without a margin."""
-    eps = _episodes("none")
-    nominal = get_scenario(SCENARIO)
-    sc_vel = nominal.scaling().velocity_m_s
-    margin = pd.label_episodes(eps, SCENARIO, DT_S, LABEL_EVERY, 0.0, progress=False,
-                               velocity_ref_m_s=sc_vel, teacher="navigated",
-                               planning_thrust_scale=0.97)
-    v = nominal.vehicle
-    weaker = dataclasses.replace(nominal,
-                                 vehicle=dataclasses.replace(v, thrust_n=0.97 * v.thrust_n))
-    np.testing.assert_allclose(margin["phi_rad"], _expert_labels(weaker, eps, "state_nd"),
-                               rtol=0.0, atol=1e-12)
-    plain = _labels(eps, "navigated")
-    assert np.max(np.abs(margin["phi_rad"] - plain["phi_rad"])) > 1e-4
-    for bad in (0.5, 2.0, float("nan"), "x"):
-        with pytest.raises(ValueError, match="planning_thrust_scale"):
-            pd.label_episodes(eps, SCENARIO, DT_S, LABEL_EVERY, 0.0, progress=False,
-                              planning_thrust_scale=bad)
 
 
 def test_dataset_recipes_of_both_families():

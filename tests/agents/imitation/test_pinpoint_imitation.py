@@ -208,10 +208,12 @@ def test_same_view_teacher_labels_every_decision_and_flies_until_its_switch():
     asked = []
 
     def teacher_fn(nav):
+        # each row's action depends on its own navigation: labels from the wrong rows differ
         asked.append(nav.t_s.copy())
-        return np.tile(np.float32([0.1, -0.2, 0.9]), (nav.n, 1))
+        return (np.float32([0.1, -0.2, 0.9]) * nav.obs[:, :1] / 26.0).astype(np.float32)
 
-    roll = LawRolloutTeacher(CallableLaw(teacher_fn, "teacher"),
+    teacher = CallableLaw(teacher_fn, "teacher")
+    roll = LawRolloutTeacher(teacher,
                              lambda obs: np.full((len(obs), 3), -0.5, dtype=np.float32),
                              switch_s=np.array([0.0, 10.0, 1e9]))
     roll.reset(None, np.arange(3))
@@ -219,12 +221,14 @@ def test_same_view_teacher_labels_every_decision_and_flies_until_its_switch():
                      state_nd=np.zeros((3, 7)), t_s=np.array([4.0, 4.0, 4.0]),
                      active=np.array([True, False, True]))
     act = roll.act(nav)
-    np.testing.assert_array_equal(act[0], [-0.5, -0.5, -0.5])  # switched at 0 s: the learner
-    np.testing.assert_allclose(act[1:], [[0.1, -0.2, 0.9]] * 2)  # before their switch: the law
     assert len(asked) == 1
-    # labels: the active landers' navigated observations and the teacher's actions
+    own = teacher.act(nav)  # the teacher asked again on the recorded navigation
+    np.testing.assert_array_equal(act[0], [-0.5, -0.5, -0.5])  # switched at 0 s: the learner
+    np.testing.assert_array_equal(act[1:], own[1:])  # before their switch: the law
+    # labels: the active landers' navigated observations and the teacher's own actions there
     np.testing.assert_array_equal(roll.records["obs"][0], nav.obs[[0, 2]])
-    np.testing.assert_allclose(roll.records["actions"][0], [[0.1, -0.2, 0.9]] * 2)
+    np.testing.assert_array_equal(roll.records["actions"][0], own[[0, 2]])
+    assert np.all(own[0] == 0.0) and not np.allclose(own[1], own[2])
 
 
 def test_same_view_teacher_is_told_the_actions_flown():
@@ -288,13 +292,39 @@ def test_bad_teacher_law_is_refused_before_flying(pinpoint_bc):
                                          teacher_law="nope:x=1")
 
 
-def test_dagger_rollouts_with_a_law_teacher_on_the_throttled_engine(tmp_path):
+def test_dagger_rollouts_with_a_law_teacher_on_the_throttled_engine(monkeypatch):
     """The law teacher flies (β = 1, switch drawn in [0, 540] s) and labels a throttled,
     uncertain env: every label has the env's three channels (angles and throttle), and the
     learner's roll-out is scored. The learner here is a fixed action (no policy file needed:
-    ``load_learner`` is any module-level loader)."""
-    import agents.imitation.families.pinpoint as lab_mod
+    ``load_learner`` is any module-level loader). Each decision's labels are the teacher
+    law's own actions on the navigation recorded there: a twin of the law, asked the same
+    navigations in the same order, gives them again, before and after the switch."""
+    import copy
 
+    import agents.imitation.families.pinpoint as lab_mod
+    from guidance.flight import fly
+    from guidance.law import ActionSequenceLaw, Navigation, actions_of
+
+    made = []
+
+    class Recording(lab_mod.LawRolloutTeacher):
+        def __init__(self, teacher, learner, switch_s):
+            super().__init__(teacher, learner, switch_s)
+            self.twin = copy.deepcopy(teacher)  # built, not yet reset: a fresh law
+            self.navs, self.flown = [], []
+            made.append(self)
+
+        def act(self, nav):
+            self.navs.append(Navigation(
+                obs=nav.obs.copy(), state_nd=nav.state_nd.copy(), t_s=nav.t_s.copy(),
+                active=nav.active.copy(), episode_start=nav.episode_start.copy(),
+                sensors={k: np.array(v) for k, v in nav.sensors.items()},
+                frame_of=nav.frame_of))
+            out = super().act(nav)
+            self.flown.append(out.copy())
+            return out
+
+    monkeypatch.setattr(lab_mod, "LawRolloutTeacher", Recording)
     env_kwargs = {"dt_s": 4.0, "throttle_channel": True, "uncertainty": "standard"}
     lab, roll = lab_mod.pinpoint_dagger_rollouts(
         "unused", _fixed_learner, ENV_ID, env_kwargs, 1, 11, None, beta=1.0, progress=False,
@@ -302,7 +332,24 @@ def test_dagger_rollouts_with_a_law_teacher_on_the_throttled_engine(tmp_path):
     assert lab["actions"].shape[1] == 3 and len(lab["obs"]) > 10
     assert set(lab["status"]) == {"law"}
     assert np.isfinite(lab["actions"]).all() and (np.abs(lab["actions"]) <= 1.0).all()
-    assert 0.0 <= roll["rollout_success_rate"] <= 1.0
+
+    (rec,) = made
+    # the roll-out's score is its episode's outcome: the actions flown, replayed open loop on
+    # the same case, land (or not) the same way and burn the same propellant
+    flown = [a[0] for a, nav in zip(rec.flown, rec.navs, strict=True) if nav.active[0]]
+    replay = fly(ENV_ID, ActionSequenceLaw([np.array(flown)]), 1, seed=11,
+                 env_kwargs=env_kwargs)
+    assert roll["rollout_success_rate"] == float(replay.is_success[0])
+    assert roll["rollout_fuel_mean_kg"] == float(replay.fuel_used_kg[0])
+    rec.twin.reset(rec.computer, np.arange(1))
+    n_learner = 0
+    for k, nav in enumerate(rec.navs):
+        again = actions_of(rec.twin.computer, rec.twin.act(nav))[nav.active]
+        np.testing.assert_array_equal(rec.records["actions"][k], again)
+        np.testing.assert_array_equal(rec.records["obs"][k], nav.obs[nav.active])
+        n_learner += int(np.any(nav.active & (nav.t_s >= rec.switch_s)))
+    assert 0 < n_learner < len(rec.navs)  # labels on the teacher's flight and the learner's
+    np.testing.assert_array_equal(lab["actions"], np.concatenate(rec.records["actions"]))
 
 
 def _fixed_learner(model, env_id, env_kwargs, obs_features):

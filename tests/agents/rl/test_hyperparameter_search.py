@@ -7,7 +7,7 @@ import optuna
 import pytest
 
 from agents.hyperparams import load_hyperparams
-from agents.rl.search import score
+from agents.rl.search import TrialEvalCallback, score
 from agents.train import main
 
 
@@ -22,6 +22,53 @@ def test_score_orders_landings_fuel_and_crashes():
     assert score(none, np.zeros(4), np.full(4, 10.0)) > score(none, np.zeros(4),
                                                              np.full(4, 900.0))
     assert score(none, np.zeros(4), np.full(4, np.nan)) == pytest.approx(-1.0)
+
+
+class _Trial:
+    """An Optuna trial's reporting surface: records the reports, prunes when told to."""
+
+    def __init__(self, prune: bool) -> None:
+        self.prune = prune
+        self.reports: list[tuple[float, int]] = []
+
+    def report(self, value: float, step: int) -> None:
+        self.reports.append((value, step))
+
+    def should_prune(self) -> bool:
+        return self.prune
+
+
+def _steps(cb: TrialEvalCallback, model, timesteps) -> list[bool]:
+    out = []
+    for t in timesteps:
+        model.num_timesteps = t
+        out.append(cb.on_step())
+    return out
+
+
+@pytest.mark.parametrize("prune", [False, True])
+def test_trial_callback_reports_each_evaluation_and_prunes_before_the_last(prune):
+    """Scores at the first step at or after each multiple of ``eval_every``, reported as steps
+    1, 2, ...; a pruning trial stops the training at its first evaluation that is not the last,
+    and a trial is never pruned at the last one."""
+    from types import SimpleNamespace
+
+    model = SimpleNamespace(num_timesteps=0, logger=None)
+    scores = iter([0.25, 0.5, 0.75])
+    trial = _Trial(prune)
+    cb = TrialEvalCallback(trial, lambda m: next(scores), eval_every=100, n_evaluations=3)
+    cb.init_callback(model)
+    if prune:
+        assert _steps(cb, model, [50, 120]) == [True, False]
+        assert cb.pruned and cb.n_evals == 1 and cb.last == 0.25
+        assert trial.reports == [(0.25, 1)]
+        last = TrialEvalCallback(_Trial(True), lambda m: 1.0, eval_every=100, n_evaluations=1)
+        last.init_callback(model)
+        assert _steps(last, model, [100]) == [True] and not last.pruned
+    else:
+        assert all(_steps(cb, model, [50, 120, 199, 200, 250, 310, 320]))
+        assert trial.reports == [(0.25, 1), (0.5, 2), (0.75, 3)]
+        assert cb.n_evals == 3 and cb.last == 0.75 and not cb.pruned
 
 
 def test_optimize_quick_writes_best_entry_and_resumes(tmp_path, capsys):

@@ -17,11 +17,30 @@ def test_race_settings_are_validated():
     assert rc.race_settings({"seed_race": {"candidates": 2.0}}) == 2
     for bad, match in (({"candidates": 1}, "candidates=1"), ({"candidates": 2.5}, "candidates"),
                        ({"candidates": "two"}, "candidates"),
-                       ({"candidates": 2, "decide_at": 0.7}, "decide_at=0.7: removed"),
-                       ({"decide_at": 1}, "decide_at=1: removed"),
+                       ({"candidates": 2, "decide_at": 0.7}, r"unknown key.*'decide_at'"),
+                       ({"decide_at": 1}, r"unknown key.*'decide_at'"),
                        ({"seeds": 2}, "seeds")):
         with pytest.raises(ValueError, match=match):
             rc.race_settings({"seed_race": bad})
+
+
+@pytest.mark.parametrize("source", ["override", "yaml"])
+def test_a_race_key_of_no_meaning_fails_the_run_as_unknown(tmp_path, source):
+    """``decide_at`` is no key of a race: set by ``--hyperparams`` or in a YAML entry, the run
+    fails naming it as an unknown key, before any candidate trains."""
+    args = ["--quick", "--env", ENV_ID, "--seed", "3", "--run-dir", str(tmp_path / "run"),
+            "--no-progress", "--no-eval", "--no-tensorboard"]
+    race = "{candidates: 2, decide_at: 0.7}"
+    if source == "override":
+        args += ["--hyperparams", f"seed_race={race}"]
+    else:
+        f = tmp_path / "ppo.yml"
+        f.write_text(yaml.safe_dump({ENV_ID: {"n_envs": 1, "n_timesteps": 64,
+                                              "seed_race": yaml.safe_load(race)}}))
+        args = [a for a in args if a != "--quick"] + ["--hyperparams-file", str(f)]
+    with pytest.raises(ValueError, match=r"seed_race: unknown key\(s\) \['decide_at'\]"):
+        tr.main(args)
+    assert not (tmp_path / "run" / "race").exists()
 
 
 def _fake_candidates(run_dir, seeds, steps):
