@@ -44,6 +44,7 @@ import numpy as np
 from guidance import explicit as gd
 from guidance.frames import LocalFrame
 from guidance.law import FlightComputer, GuidanceLaw, Navigation, ThrustCommand
+from guidance.laws.engine_estimate import ThrustScaleEstimator
 
 __all__ = ["AugmentedApolloLaw", "GravityTurnLaw", "TGO_RULES", "TGO_MAX_S"]
 
@@ -58,7 +59,9 @@ TGO_MIN_S = 0.05
 
 
 class _ExplicitLaw(GuidanceLaw):
-    """What the explicit laws share: the nominal vehicle they plan with."""
+    """What the explicit laws share: the nominal vehicle they plan with, and the engine's
+    present thrust measured by the IMU (Apollo's throttle routine: the mass estimate times the
+    measured acceleration over the last guidance cycle, divided by the throttle flown)."""
 
     def reset(self, computer: FlightComputer, case_ids: np.ndarray) -> None:
         super().reset(computer, case_ids)
@@ -66,14 +69,33 @@ class _ExplicitLaw(GuidanceLaw):
         self.exhaust_velocity = computer.exhaust_velocity_m_s
         self.dry_mass_kg = computer.dry_mass_kg
         self.throttled = computer.throttled
+        self.estimator = ThrustScaleEstimator(self.thrust_n) if "imu" in computer.sensors \
+            else None
+        if self.estimator is not None:
+            self.estimator.reset(len(case_ids))
 
-    def command(self, a_thrust: np.ndarray, mass_kg: np.ndarray) -> ThrustCommand:
+    def full_thrust_accel(self, nav: Navigation, mass_kg: np.ndarray) -> np.ndarray:
+        """The thrust acceleration (N,) (m/s²) the engine gives at full throttle now: T/m̂
+        times the IMU's measured scale (:class:`~guidance.laws.engine_estimate.
+        ThrustScaleEstimator`; 1 before a measured decision, or without an IMU)."""
+        accel = self.thrust_n / mass_kg
+        if self.estimator is None or "imu" not in nav.sensors:
+            return accel
+        self.estimator.reset_rows(np.flatnonzero(nav.episode_start))
+        self.estimator.observe(nav.sensors["imu"], mass_kg, nav.active)
+        return accel * self.estimator.scale
+
+    def command(self, nav: Navigation, a_thrust: np.ndarray, accel: np.ndarray,
+                mass_kg: np.ndarray) -> ThrustCommand:
         """Thrust along ``a_thrust`` (N, d) (m/s², guidance frame), with throttle
-        |a| m / T on a throttled engine (the engine gives T/m otherwise)."""
-        if not self.throttled:
-            return ThrustCommand(a_thrust)
-        thr = np.clip(np.linalg.norm(a_thrust, axis=1) * mass_kg / self.thrust_n, 0.0, 1.0)
-        return ThrustCommand(a_thrust, thr)
+        |a| / ``accel`` (the full-throttle acceleration) on a throttled engine (the engine
+        gives its full thrust otherwise); the throttle flown is recorded for the next
+        measurement."""
+        thr = np.ones(len(accel)) if not self.throttled else np.clip(
+            np.linalg.norm(a_thrust, axis=1) / accel, 0.0, 1.0)
+        if self.estimator is not None:
+            self.estimator.record(thr, mass_kg, nav.active)
+        return ThrustCommand(a_thrust, thr if self.throttled else None)
 
 
 class AugmentedApolloLaw(_ExplicitLaw):
@@ -189,7 +211,7 @@ class AugmentedApolloLaw(_ExplicitLaw):
         f = nav.frame
         if not self.include_rotation:
             f = dataclasses.replace(f, g=f.g_without_spin)
-        accel = self.thrust_n / f.mass_kg
+        accel = self.full_thrust_accel(nav, f.mass_kg)
         if self.aim_above_m > 0.0:
             rel = f.r_to_target.copy()
             rel[:, -1] += self.aim_above_m
@@ -214,7 +236,7 @@ class AugmentedApolloLaw(_ExplicitLaw):
                 a[fin] = accel[fin, None] * gd.gravity_turn_direction(f.v[fin])
         self.prev_thrust = a
         self.last_tgo = t_go
-        return self.command(a, f.mass_kg)
+        return self.command(nav, a, accel, f.mass_kg)
 
     def solve_tgo(self, f: LocalFrame, command, accel: np.ndarray) -> np.ndarray:
         """t_go (s) of the frame's landers by the rule (the countdown plans with ``rocket``)."""
@@ -284,7 +306,7 @@ class GravityTurnLaw(_ExplicitLaw):
         if not self.include_rotation:
             f = dataclasses.replace(f, g=f.g_without_spin)
         direction = gd.gravity_turn_direction(f.v)
-        accel = self.thrust_n / f.mass_kg
+        full = accel = self.full_thrust_accel(nav, f.mass_kg)
         if self.throttled:
             speed = np.linalg.norm(f.v, axis=1)
             sin_gamma = np.clip(-f.v[:, -1] / np.maximum(speed, 1e-9), 0.0, 1.0)
@@ -292,7 +314,7 @@ class GravityTurnLaw(_ExplicitLaw):
             need = sin_gamma * (speed * speed / (2.0 * np.maximum(f.height_m, 1.0)) + g_v)
             self.terminal |= need >= self.terminal_fraction * accel
             accel = np.where(self.terminal, np.minimum(need, accel), accel)
-        return self.command(direction * accel[:, None], f.mass_kg)
+        return self.command(nav, direction * accel[:, None], full, f.mass_kg)
 
 
 def _check_range(name: str, value, lo: float, hi: float) -> float:

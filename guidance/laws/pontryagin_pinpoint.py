@@ -11,7 +11,7 @@ import numpy as np
 from guidance.law import FlightComputer, GuidanceLaw, Navigation
 from guidance.laws.engine_estimate import ThrustScaleEstimator
 from guidance.laws.terminal_window import TerminalWindow
-from lunar_env.envs.pinpoint_landing import action_from_angles, angles_from_action
+from lunar_env.envs.pinpoint_landing import action_from_angles
 from optimizers.indirect.pinpoint_feedback import PinpointFeedback
 from optimizers.optimum import plant_scenario
 
@@ -133,7 +133,7 @@ class PinpointReserveExpert(GuidanceLaw):
         few metres (3 m at 1σ at the v2 gate under ``standard``) crosses the gate still
         braking at tens of m/s.
     estimate_thrust : bool
-        Estimate the engine's thrust-acceleration scale from the navigated velocity changes
+        Measure the engine's thrust-acceleration scale with the IMU
         (:class:`guidance.laws.engine_estimate.ThrustScaleEstimator`) and divide
         the commanded throttle by it, so that the engine gives the thrust the plan assumed
         (up to full throttle): the reserve then absorbs a weak engine instead of the plan
@@ -191,15 +191,18 @@ class PinpointReserveExpert(GuidanceLaw):
         self.window: TerminalWindow | None = None
         self.estimator = None
         if estimate_thrust:
-            sc, k = self.full.scenario, self.full.feedback.k
-            self.estimator = ThrustScaleEstimator(sc.params(sc.scaling()), k.time_s,
-                                                  k.velocity_m_s, k.mass_kg)
+            self.estimator = ThrustScaleEstimator(self.full.scenario.vehicle.thrust_n)
 
     def reset(self, computer: FlightComputer, case_ids: np.ndarray) -> None:
-        """New flights; ``ValueError`` unless the env has a throttle channel."""
+        """New flights; ``ValueError`` unless the env has a throttle channel (and an IMU, to
+        estimate the thrust)."""
         if not computer.throttled:
             raise ValueError(f"a thrust reserve needs the throttle channel (throttle_channel="
                              f"True); {computer.env_id} has none")
+        if self.estimator is not None and "imu" not in computer.sensors:
+            raise ValueError(f"estimate_thrust needs the IMU; {computer.env_id}'s flight "
+                             "computer has none")
+        self._mass_ref_kg = float(computer.scenario.scaling().mass_kg)
         super().reset(computer, case_ids)
         for expert in (self.planned, self.full, self.low):
             expert.reset(computer, case_ids)
@@ -232,8 +235,9 @@ class PinpointReserveExpert(GuidanceLaw):
     def act(self, nav: Navigation) -> np.ndarray:
         self._start_episodes(np.flatnonzero(nav.episode_start))
         active = np.asarray(nav.active, dtype=bool)
+        mass_kg = nav.state_nd[:, 6] * self._mass_ref_kg
         if self.estimator is not None:
-            self.estimator.observe(nav.state_nd, nav.t_s, active)
+            self.estimator.observe(nav.sensors["imu"], mass_kg, active)
         everyone = active
         if self.window is not None:
             active = active & ~self.in_window  # landers in their window fly it
@@ -277,7 +281,7 @@ class PinpointReserveExpert(GuidanceLaw):
         self.decisions["reserve"] += int((active & ~off & ~windowed).sum())
         self.decisions["window"] += int(windowed.sum())
         if self.estimator is not None:
-            self.estimator.record(nav.state_nd, np.c_[angles, throttle], nav.t_s, everyone)
+            self.estimator.record(throttle, mass_kg, everyone)
         self._commanded = np.concatenate([actions, (2.0 * throttle - 1.0)[:, None]],
                                          axis=1).astype(np.float32)
         return self._commanded.copy()
@@ -291,11 +295,8 @@ class PinpointReserveExpert(GuidanceLaw):
         actions = np.asarray(actions, dtype=np.float64)
         active = np.asarray(nav.active, dtype=bool)
         if self.estimator is not None:
-            sc = self.computer.scenario
-            alpha, beta = angles_from_action(actions[:, :2], sc.alpha_bounds_rad,
-                                             sc.beta_bounds_rad)
             throttle = np.clip(0.5 * (actions[:, 2] + 1.0), 0.0, 1.0)
-            self.estimator.record(nav.state_nd, np.c_[alpha, beta, throttle], nav.t_s, active)
+            self.estimator.record(throttle, nav.state_nd[:, 6] * self._mass_ref_kg, active)
         if self.window is not None:
             off = active & self.in_window & np.any(
                 np.abs(actions - self._commanded) > 1e-6, axis=1)

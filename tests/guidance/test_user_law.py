@@ -16,7 +16,8 @@ EXAMPLE = REPO / "examples" / "apollo_in_15_lines.py"
 
 def test_the_fifteen_line_apollo_flies_as_the_library_law():
     """On the constant-thrust planar engine the example law is the library's ``apollo``: the same
-    landings, the same propellant."""
+    landings, the same propellant (to the library law's measuring its engine with the IMU,
+    which in the nominal world reads the nominal thrust to a few parts per million)."""
     from guidance.flight import fly
     from guidance.laws.apollo import AugmentedApolloLaw
     from guidance.registry import import_law_modules
@@ -27,7 +28,7 @@ def test_the_fifteen_line_apollo_flies_as_the_library_law():
     a = fly("LunarSoftLanding-v0", mod.Apollo(), 6, seed=3, env_kwargs=kw)
     b = fly("LunarSoftLanding-v0", AugmentedApolloLaw(), 6, seed=3, env_kwargs=kw)
     np.testing.assert_array_equal(a.is_success, b.is_success)
-    np.testing.assert_allclose(a.fuel_used_kg, b.fuel_used_kg, rtol=1e-9)
+    np.testing.assert_allclose(a.fuel_used_kg, b.fuel_used_kg, rtol=1e-5)
 
 
 def test_a_users_law_flies_a_campaign_from_the_command_line(tmp_path):
@@ -36,6 +37,7 @@ def test_a_users_law_flies_a_campaign_from_the_command_line(tmp_path):
         [sys.executable, "-m", "lunar", "campaign", "--import", str(EXAMPLE), "--laws",
          "apollo-15", "apollo", "--env", "LunarSoftLanding-v0", "--env-kwargs",
          '{"dt_s": 2.5}', "--cases", "4", "--chunk", "2", "--scales", "--workers", "1",
+         "--uncertainty", "none",
          "--no-plots", "--out", str(out)],
         capture_output=True, text=True, timeout=600, cwd=tmp_path)
     assert res.returncode == 0, res.stderr[-3000:]
