@@ -531,11 +531,19 @@ _DOC = """
     carries ``state_nd`` and ``navigation_state_nd`` ((7,), normalised) under a model; the
     default ``"none"`` is the env exactly as without it.
 
+    ## Sensors
+
+    As ``LunarSoftLanding-v0``'s: the IMU's specific force in (along-track, cross-track, up)
+    (m/s²), ``env.unwrapped.sensor_readings()["imu"]``; ``sensors=("imu",)`` appends it to the
+    observation as three columns in units of T/m₀, clipped to ±3 (observation layout: the nine
+    columns above, then the sensor columns).
+
     ## Arguments
 
     As ``LunarSoftLanding-v0`` (``scenario`` default "peng2012", ``dt_s``, ``substeps``,
     ``time_limit_s``, ``throttle_channel``, ``success_speed_m_s``, ``max_fall_s``,
-    ``cutoff_speed_m_s``, ``uncertainty``, ``render_mode``) plus ``success_miss_m`` (500.0),
+    ``cutoff_speed_m_s``, ``uncertainty``, ``sensors``, ``render_mode``) plus
+    ``success_miss_m`` (500.0),
     ``charge_propellant_on_failure`` (v1/v2 True, v0 False) and ``gate_range_m`` (v2 10000.0;
     None: the gate sphere everywhere).
 

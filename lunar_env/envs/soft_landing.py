@@ -407,9 +407,10 @@ _DOC = """
     ``uncertainty="standard"`` (or ``"stress"``, an :class:`~lunar_env.uncertainty.
     UncertaintyModel`, or a dict of its fields) draws, per episode, entry errors of the start
     (up and downrange position and velocity), a thrust scale, an Isp scale, a thrust-angle
-    misalignment and a wet-mass error, and navigation errors (a bias per episode and white
-    noise per decision, shrinking below the radar altitude): see :mod:`lunar_env.uncertainty`
-    for the model and the reasons for each value. The observation then encodes the
+    misalignment and a wet-mass error, navigation errors (a bias per episode and white noise
+    per decision, then below the terminal sensors' acquisition altitude their own errors, a
+    fraction of the altitude), and the IMU's (bias, scale factor, noise): see
+    :mod:`lunar_env.uncertainty` for the model and the source of each value. The observation then encodes the
     *navigated* state; integration, reward, termination, success and the usual ``info`` keys
     use the truth, and ``info`` also carries ``state_nd`` (truth) and ``navigation_state_nd``
     (normalised, (5,)). ``env.unwrapped.episode_errors`` holds the drawn errors, and
@@ -418,6 +419,16 @@ _DOC = """
     case k of a campaign is the same for every law. The default ``"none"`` is this env exactly
     as without the model (every seeded episode bit for bit,
     ``benchmarks/record_episodes.py``).
+
+    ## Sensors
+
+    The flight computer's IMU measures the specific force over each decision, the mean thrust
+    acceleration along the (misaligned) thrust axis, in (downrange, up) (m/s²), with the
+    episode's IMU errors: ``env.unwrapped.sensor_readings()["imu"]`` (0 plus the errors at an
+    episode's first decision). ``sensors=("imu",)`` also appends it to the observation, as two
+    columns in units of T/m₀ (the nominal thrust acceleration at the wet mass), clipped to ±3;
+    ``observation_quantities`` decodes them as ``imu_m_s2``. Observation layout: the five
+    columns above, then the sensor columns in the order given.
 
     ## Arguments
 
@@ -433,6 +444,7 @@ _DOC = """
     | ``cutoff_speed_m_s``| 20.0        | speed minima at or below it cut the engine off       |
     | ``thrust_n``        | None        | engine level (N) in (0, T_max]; None: T_max          |
     | ``uncertainty``     | "none"      | plant and navigation errors (see above)              |
+    | ``sensors``         | ()          | sensor channels appended to the observation ("imu")  |
     | ``render_mode``     | None        | "rgb_array" or "human"                               |
 
     >>> import gymnasium as gym

@@ -144,7 +144,8 @@ class UncertaintyModel:
     sensor_altitude_m : float
         Altitude (m) at which the terminal sensors (altimeter and velocimeter: a landing radar
         or Doppler lidar, with terrain-relative navigation for the horizontal position)
-        acquire the ground (finite, > 0; the default 1e9 m: never).
+        acquire the ground (finite, >= 0; the default 0: the lander has none, and navigation
+        keeps the inertial solution's errors to the ground).
     sensor_blend_fraction : float
         The navigation filter's hand-over: over the altitudes from ``sensor_altitude_m`` down
         by this fraction of it, the error blends linearly from the inertial solution's to the
@@ -232,7 +233,7 @@ class UncertaintyModel:
     nav_velocity_bias_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
     nav_position_noise_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     nav_velocity_noise_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    sensor_altitude_m: float = 1.0e9
+    sensor_altitude_m: float = 0.0
     sensor_blend_fraction: float = 0.1
     sensor_position_fraction: tuple[float, float, float] = (0.0, 0.0, 0.0)
     sensor_position_noise_fraction: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -252,9 +253,10 @@ class UncertaintyModel:
         for f in _SCALARS:
             object.__setattr__(self, f, _sigma(f, f, getattr(self, f)))
         r = require_number("UncertaintyModel.sensor_altitude_m", self.sensor_altitude_m)
-        if not (math.isfinite(r) and r > 0.0):
+        if not (math.isfinite(r) and r >= 0.0):
             raise ValueError(f"UncertaintyModel.sensor_altitude_m = {self.sensor_altitude_m!r} "
-                             "is not allowed; it must be finite and > 0 (m)")
+                             "is not allowed; it must be finite and >= 0 (m; 0: no terminal "
+                             "sensors)")
         object.__setattr__(self, "sensor_altitude_m", r)
         b = require_number("UncertaintyModel.sensor_blend_fraction", self.sensor_blend_fraction)
         if not 0.0 < b <= 1.0:

@@ -81,6 +81,8 @@ def blend_weight(altitude_m, acquisition_m, band_fraction):
     and above the acquisition altitude, 0 below the hand-over band (``band_fraction`` of the
     acquisition altitude below it), linear in between; the terminal sensors' error has
     weight 1 − w."""
+    if acquisition_m <= 0.0:  # no terminal sensors: the inertial solution throughout
+        return altitude_m * 0.0 + 1.0
     low = acquisition_m * (1.0 - band_fraction)
     return np.minimum(np.maximum((altitude_m - low) / (acquisition_m - low), 0.0), 1.0)
 
@@ -93,7 +95,7 @@ def terminal_normals(keys, counters, altitude_m, acquisition_m, z):
     leave it (nobody reads it)."""
     below = False
     for i in range(keys.shape[0]):
-        if altitude_m[i] < acquisition_m:
+        if altitude_m[i] < acquisition_m and acquisition_m > 0.0:
             below = True
             break
     if below:
@@ -141,7 +143,7 @@ def navigation_error(z, zt, i, altitude_m, bias_p, bias_v, t_frac, t_floor, t_ve
     if n_axes > 2:
         p2 = bias_p[i, 2] + z[4, i] * c[2]
         v2 = bias_v[i, 2] + z[5, i] * c[5]
-    if altitude_m >= c[6]:
+    if altitude_m >= c[6] or c[6] <= 0.0:  # above acquisition, or no terminal sensors
         return p0, p1, p2, v0, v1, v2
     w = blend_weight(altitude_m, c[6], c[7])
     h = max(altitude_m, 0.0)

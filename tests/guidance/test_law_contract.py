@@ -108,7 +108,10 @@ def test_an_ordinary_law_gets_the_flight_computer_and_navigation_only():
         "obs", "state_nd", "t_s", "active", "episode_start", "sensors", "frame_of"}
     assert nav.obs.shape == (4, 5) and nav.state_nd.shape == (4, 5)
     np.testing.assert_array_equal(nav.t_s, np.zeros(4))
-    assert nav.active.all() and nav.episode_start.all() and dict(nav.sensors) == {}
+    assert nav.active.all() and nav.episode_start.all() and set(nav.sensors) == {"imu"}
+    # the IMU at an episode's first decision: nothing flown yet (no errors in this env)
+    np.testing.assert_array_equal(nav.sensors["imu"], 0.0)
+    assert np.all(np.linalg.norm(law.calls[1].sensors["imu"], axis=1) > 1.0)  # braking
     assert not law.calls[1].episode_start.any()
     # the guidance frame, in SI: (downrange, up), the mass estimate and the height
     f = nav.frame

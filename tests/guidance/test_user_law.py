@@ -20,10 +20,12 @@ def test_the_fifteen_line_apollo_flies_as_the_library_law():
     which in the nominal world reads the nominal thrust to a few parts per million)."""
     from guidance.flight import fly
     from guidance.laws.apollo import AugmentedApolloLaw
+    from guidance import registry
     from guidance.registry import import_law_modules
 
     import_law_modules([str(EXAMPLE)])
-    mod = sys.modules["lunar_user_laws.apollo_in_15_lines"]
+    mod = sys.modules.pop("lunar_user_laws.apollo_in_15_lines")  # imported once, here
+    registry._REGISTRY.pop("apollo-15")  # a test's law does not stay registered
     kw = {"dt_s": 2.5}
     a = fly("LunarSoftLanding-v0", mod.Apollo(), 6, seed=3, env_kwargs=kw)
     b = fly("LunarSoftLanding-v0", AugmentedApolloLaw(), 6, seed=3, env_kwargs=kw)

@@ -29,7 +29,7 @@ IDS = ("LunarSoftLanding-v0", "LunarPinpointLanding-v2")
     ({"entry_position_m": (1.0, -2.0, 3.0)}, "entry_position_m[1]"),
     ({"nav_velocity_noise_m_s": (1.0, 2.0)}, "nav_velocity_noise_m_s"),
     ({"sensor_position_fraction": (0.0, 0.6, 0.0)}, "sensor_position_fraction[1]"),
-    ({"sensor_altitude_m": 0.0}, "sensor_altitude_m"),
+    ({"sensor_altitude_m": -1.0}, "sensor_altitude_m"),
     ({"sensor_blend_fraction": 0.0}, "sensor_blend_fraction"),
     ({"imu_bias_m_s2": 2.0}, "imu_bias_m_s2"),
     ({"imu_vrw_m_s_sqrt_s": -1e-3}, "imu_vrw_m_s_sqrt_s"),
