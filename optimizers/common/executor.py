@@ -45,7 +45,6 @@ command stops its workers and keeps what is stored
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from abc import ABC, abstractmethod

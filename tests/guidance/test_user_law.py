@@ -18,9 +18,9 @@ def test_the_fifteen_line_apollo_flies_as_the_library_law():
     """On the constant-thrust planar engine the example law is the library's ``apollo``: the same
     landings, the same propellant (to the library law's measuring its engine with the IMU,
     which in the nominal world reads the nominal thrust to a few parts per million)."""
+    from guidance import registry
     from guidance.flight import fly
     from guidance.laws.apollo import AugmentedApolloLaw
-    from guidance import registry
     from guidance.registry import import_law_modules
 
     import_law_modules([str(EXAMPLE)])
