@@ -412,8 +412,8 @@ _DOC = """
     fraction of the altitude), and the IMU's (bias, scale factor, noise): see
     :mod:`lunar_env.uncertainty` for the model and the source of each value. The
     observation then encodes the *navigated* state; integration, reward, termination,
-    success and the usual ``info`` keys use the truth, and ``info`` also carries ``state_nd`` (truth) and ``navigation_state_nd``
-    (normalised, (5,)). ``env.unwrapped.episode_errors`` holds the drawn errors, and
+    success and the usual ``info`` keys use the truth, and ``info`` also carries
+    ``state_nd`` (truth) and ``navigation_state_nd`` (normalised, (5,)). ``env.unwrapped.episode_errors`` holds the drawn errors, and
     ``reset(options={"errors": {...}})`` pins some of them (e.g. ``{"thrust_scale": 0.98}``).
     The errors of an episode reset with seed s come from a stream of their own seeded by s, so
     case k of a campaign is the same for every law. The default ``"none"`` is this env exactly
