@@ -407,17 +407,17 @@ _DOC = """
     ``uncertainty="standard"`` (or ``"stress"``, an :class:`~lunar_env.uncertainty.
     UncertaintyModel`, or a dict of its fields) draws, per episode, entry errors of the start
     (up and downrange position and velocity), a thrust scale, an Isp scale, a thrust-angle
-    misalignment and a wet-mass error, navigation errors (a bias per episode and white noise
-    per decision, then below the terminal sensors' acquisition altitude their own errors, a
-    fraction of the altitude), and the IMU's (bias, scale factor, noise): see
-    :mod:`lunar_env.uncertainty` for the model and the source of each value. The
-    observation then encodes the *navigated* state; integration, reward, termination,
-    success and the usual ``info`` keys use the truth, and ``info`` also carries
-    ``state_nd`` (truth) and ``navigation_state_nd`` (normalised, (5,)). ``env.unwrapped.episode_errors`` holds the drawn errors, and
-    ``reset(options={"errors": {...}})`` pins some of them (e.g. ``{"thrust_scale": 0.98}``).
-    The errors of an episode reset with seed s come from a stream of their own seeded by s, so
-    case k of a campaign is the same for every law. The default ``"none"`` is this env exactly
-    as without the model (every seeded episode bit for bit,
+    misalignment and a wet-mass error, navigation errors (a bias per episode and white noise per
+    decision, then below the terminal sensors' acquisition altitude their own errors, a fraction
+    of the altitude), and the IMU's (bias, scale factor, noise): see
+    :mod:`lunar_env.uncertainty` for the model and the source of each value. The observation
+    then encodes the *navigated* state; integration, reward, termination, success and the usual
+    ``info`` keys use the truth, and ``info`` also carries ``state_nd`` (truth) and
+    ``navigation_state_nd`` (normalised, (5,)). ``env.unwrapped.episode_errors`` holds the drawn
+    errors, and ``reset(options={"errors": {...}})`` pins some of them (e.g. ``{"thrust_scale":
+    0.98}``). The errors of an episode reset with seed s come from a stream of their own seeded
+    by s, so case k of a campaign is the same for every law. The default ``"none"`` is this env
+    exactly as without the model (every seeded episode bit for bit,
     ``benchmarks/record_episodes.py``).
 
     ## Sensors
