@@ -40,8 +40,10 @@ import math
 import numba
 import numpy as np
 
+from .. import dynamics as dyn
 from .. import integrators as integ
 from ..uncertainty import EpisodeErrors, UncertaintyModel
+from ..uncertainty.navigation import IMU_SALT, standard_normals
 
 __all__ = ["LanderBatch", "landing_penalty", "SPEED_SCALE_M_S", "MISS_SCALE_M",
            "INFO_KEYS"]
@@ -116,6 +118,50 @@ def _fuel_used_and_time(m_start, y, t_nd, mass_ref_kg, time_ref_s, fuel, t_s
         t_s[i] = t_nd[i] * time_ref_s
 
 
+@numba.njit(cache=True, error_model="numpy")
+def _imu_kernel(rows, y0, t0, y, t_nd, controls, c_nd, n_axes, time_ref_s, velocity_ref_m_s,
+                keys, counters, gain, bias, sigma, uncertain, out):  # pragma: no cover
+    """The accelerometers' reading into ``out`` (n, n_axes) (zeroed by the caller): for each
+    stepped lander ``rows[j]`` that has flown a step of its episode, the step's mean thrust
+    acceleration c·ln(m₀/m₁)/Δt along its thrust direction in the guidance frame's axes; then,
+    under an uncertainty model, gain × that + bias + σ·noise for every lander (the noise
+    counter-based on the episode's IMU key). The one formula of
+    :meth:`LanderBatch.specific_force_m_s2` and :meth:`LanderBatch.sensor_readings`."""
+    last = y.shape[1] - 1
+    for j in range(rows.shape[0]):
+        i = rows[j]
+        if t_nd[i] <= 0.0:
+            continue
+        dv = c_nd[j] * np.log(y0[j, last] / y[i, last]) * velocity_ref_m_s
+        a = dv / ((t_nd[i] - t0[j]) * time_ref_s)
+        # the thrust direction of the equations of motion (lunar_env.dynamics)
+        if n_axes == 2:
+            up, brake, _ = dyn.planar_thrust_terms(controls[j, 0], 1.0)
+            out[i, 0] = -brake * a
+            out[i, 1] = up * a
+        else:
+            radial, along, cross, _ = dyn.moon3d_thrust_terms(controls[j, 0], controls[j, 1], 1.0)
+            out[i, 0] = along * a
+            out[i, 1] = cross * a
+            out[i, 2] = radial * a
+    if uncertain:
+        n = out.shape[0]
+        ikeys = np.empty(n, dtype=np.uint64)
+        for i in range(n):
+            ikeys[i] = keys[i] ^ IMU_SALT
+        z = np.empty((4, n))
+        standard_normals(ikeys, counters, z)
+        for i in range(n):
+            # bias and noise columns (up, downrange, crossrange) in the guidance axes' order
+            if n_axes == 2:
+                out[i, 0] = gain[i] * out[i, 0] + bias[i, 1] + sigma * z[1, i]
+                out[i, 1] = gain[i] * out[i, 1] + bias[i, 0] + sigma * z[0, i]
+            else:
+                out[i, 0] = gain[i] * out[i, 0] + bias[i, 1] + sigma * z[1, i]
+                out[i, 1] = gain[i] * out[i, 1] + bias[i, 2] + sigma * z[2, i]
+                out[i, 2] = gain[i] * out[i, 2] + bias[i, 0] + sigma * z[0, i]
+
+
 class LanderBatch:
     """State and step physics of ``n`` landers of one task.
 
@@ -185,6 +231,7 @@ class LanderBatch:
         self._n_angles = nu - 1  # every control channel but the last (throttle) is an angle
         self._nav: np.ndarray | None = None
         self._last_step: tuple | None = None
+        self._imu_sigma = float(task.uncertainty.imu_vrw_m_s_sqrt_s / math.sqrt(task.dt_s))
 
     @property
     def task(self):
@@ -281,40 +328,46 @@ class LanderBatch:
             self._nav = self.navigation_states()
         return self._nav
 
+    def _imu(self, measured: bool) -> np.ndarray:
+        task = self._task
+        out = np.zeros((self.n, task.n_axes))
+        if self._last_step is None:  # no step yet: nothing flown (the errors still read)
+            if not measured:
+                return out
+            rows, t0, c_nd = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
+            controls = np.zeros((0, task.model.n_control))
+            y0 = np.zeros((0, task.model.n_state))
+        else:
+            idx, y0, t0, controls, p = self._last_step
+            rows = np.arange(self.n) if idx is None else np.asarray(idx, dtype=np.int64)
+            c_nd = np.ascontiguousarray(p[:, 1])
+        e = self.errors
+        uncertain = measured and self.uncertain
+        _imu_kernel(rows, np.ascontiguousarray(y0), np.ascontiguousarray(t0), self.y,
+                    self.t_nd, np.ascontiguousarray(controls, dtype=np.float64), c_nd,
+                    task.n_axes, task.time_ref_s, task.velocity_ref_m_s,
+                    e.noise_key if uncertain else np.zeros(self.n, dtype=np.uint64),
+                    self.decision, e.imu_scale if uncertain else np.ones(self.n),
+                    e.imu_bias_m_s2 if uncertain else np.zeros((self.n, 3)),
+                    self._imu_sigma, uncertain, out)
+        return out
+
     def specific_force_m_s2(self) -> np.ndarray:
         """The true specific force of every lander (n, d) (m/s²): its mean thrust acceleration
         over the last step, along the misaligned thrust axis, in the guidance frame's axes
-        (horizontal..., up; :meth:`~lunar_env.envs.task.LandingTask.thrust_direction`); 0 for
+        (horizontal..., up; the thrust direction of :mod:`lunar_env.dynamics`); 0 for
         a lander that has not flown a step of its episode. The rocket equation gives its
         magnitude exactly (the step's Δv is c·ln(m₀/m₁) whatever the throttle), its direction
         is the step's (the frame turns by a few thousandths of a degree in a step)."""
-        task = self._task
-        out = np.zeros((self.n, task.n_axes))
-        if self._last_step is None:
-            return out
-        idx, y0, t0, controls, p = self._last_step
-        rows = np.arange(self.n) if idx is None else np.asarray(idx)
-        live = self.t_nd[rows] > 0.0
-        if not live.any():
-            return out
-        r = rows[live]
-        m0 = y0[live, -1]
-        m1 = self.y[r, -1]
-        dt_s = (self.t_nd[r] - t0[live]) * task.time_ref_s
-        dv_m_s = p[live, 1] * np.log(m0 / m1) * task.velocity_ref_m_s
-        out[r] = task.thrust_direction(controls[live]) * (dv_m_s / dt_s)[:, None]
-        return out
+        return self._imu(measured=False)
 
     def sensor_readings(self) -> dict[str, np.ndarray]:
         """What the flight computer's sensors read now, per lander: ``imu`` (n, d), the
         accelerometers' specific force (m/s², guidance-frame axes): the truth
-        (:meth:`specific_force_m_s2`) with the episode's IMU errors (scale factor, bias,
-        and white noise of the velocity random walk over the decision interval,
-        counter-based on the episode's IMU key) under an uncertainty model."""
-        f = self.specific_force_m_s2()
-        if not self.uncertain:
-            return {"imu": f}
-        return {"imu": self._task.measured_specific_force(f, self.errors, self.decision)}
+        (:meth:`specific_force_m_s2`) with the episode's IMU errors under an uncertainty model:
+        gain (1 + scale-factor error) × truth + bias + white noise, its σ the velocity random
+        walk over √dt, counter-based on the episode's IMU key."""
+        return {"imu": self._imu(measured=True)}
 
     def info_arrays(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray,
                     scratch: bool = False) -> dict[str, np.ndarray]:

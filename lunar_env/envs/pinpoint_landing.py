@@ -232,14 +232,6 @@ class PinpointTask(LandingTask):
                          self.throttle_channel, u)
         return u
 
-    def thrust_direction(self, u: np.ndarray) -> np.ndarray:
-        """Unit thrust directions (B, 3) (along-track, cross-track, up) of controls (α, β rad,
-        throttle): elevation α above the local horizontal, azimuth β from along-track
-        (:func:`lunar_env.dynamics.moon3d_thrust_terms`)."""
-        u = np.asarray(u, dtype=np.float64)
-        ca = np.cos(u[:, 0])
-        return np.stack([ca * np.cos(u[:, 1]), ca * np.sin(u[:, 1]), np.sin(u[:, 0])], axis=1)
-
     def actions_from_controls(self, u: np.ndarray) -> np.ndarray:
         """Actions (B, n_act) float32 of controls (α, β rad, throttle) (B, 3):
         :func:`action_from_angles` on the scenario's bounds, and 2·throttle − 1 with a throttle

@@ -195,12 +195,6 @@ class PlanarTask(LandingTask):
         _controls_kernel(float_array(a), self.throttle_channel, u)
         return u
 
-    def thrust_direction(self, u: np.ndarray) -> np.ndarray:
-        """Unit thrust directions (B, 2) (downrange, up) of controls (φ rad, throttle): cos φ > 0
-        thrusts against +downrange motion (:func:`lunar_env.dynamics.planar_eom`)."""
-        phi = np.asarray(u, dtype=np.float64)[:, 0]
-        return np.stack([-np.cos(phi), np.sin(phi)], axis=1)
-
     def actions_from_controls(self, u: np.ndarray) -> np.ndarray:
         """Actions (B, n_act) float32 of controls (φ rad, throttle) (B, 2):
         :func:`action_from_thrust_angle`, and 2·throttle − 1 with a throttle channel."""

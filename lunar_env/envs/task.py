@@ -28,8 +28,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from ..uncertainty import EpisodeErrors, UncertaintyModel, navigation_noise, resolve_uncertainty
-from ..uncertainty.navigation import IMU_SALT
+from ..uncertainty import EpisodeErrors, UncertaintyModel, resolve_uncertainty
 from ..validation import require_bool, require_finite_positive, require_integer
 
 __all__ = ["LandingTask", "StepSettings", "fall_steps", "float_array", "box"]
@@ -59,9 +58,7 @@ def check_sensors(sensors) -> tuple[str, ...]:
     return out
 
 
-#: columns of an (up, downrange, crossrange) error in the guidance frame's axis order
-#: (horizontal..., up), by the number of axes
-_GUIDANCE_ORDER = {2: [1, 0], 3: [1, 2, 0]}
+
 
 
 @dataclasses.dataclass(frozen=True)
@@ -361,24 +358,6 @@ class LandingTask(metaclass=_FrozenAfterInit):
         o = np.asarray(obs, dtype=np.float64).reshape(-1, self.observation_space.shape[0])
         return {"imu_m_s2": o[:, self.n_base_obs:self.n_base_obs + self.n_axes]
                 * self.imu_ref_m_s2}
-
-    @abc.abstractmethod
-    def thrust_direction(self, u: np.ndarray) -> np.ndarray:
-        """Unit thrust directions (B, n_axes) of model controls ``u`` (B, n_control) in the
-        guidance frame's axes (horizontal..., up)."""
-
-    def measured_specific_force(self, f_m_s2: np.ndarray, errors: EpisodeErrors,
-                                decisions: np.ndarray) -> np.ndarray:
-        """The accelerometers' reading (B, n_axes) (m/s², guidance-frame axes) of true specific
-        forces ``f_m_s2`` (B, n_axes) of episodes with ``errors`` (B rows) at decision indices
-        ``decisions`` (B,): gain × truth + bias + white noise, the noise's σ the velocity
-        random walk over √dt (counter-based on the episode's IMU key)."""
-        order = _GUIDANCE_ORDER[self.n_axes]
-        z = navigation_noise(np.ascontiguousarray(errors.noise_key, dtype=np.uint64) ^ IMU_SALT,
-                             np.ascontiguousarray(decisions, dtype=np.int64), 3)
-        sigma = self.uncertainty.imu_vrw_m_s_sqrt_s / math.sqrt(self.dt_s)
-        return (errors.imu_scale[:, None] * f_m_s2 + errors.imu_bias_m_s2[:, order]
-                + sigma * z[:, order])
 
     @abc.abstractmethod
     def observation(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
