@@ -61,6 +61,7 @@ The package, one job a module:
 from ._random import TRUNCATION_SIGMA
 from .episode import N_NORMALS, EpisodeErrors, error_stream
 from .model import (
+    MODEL_VERSION,
     NAMED_SETS,
     SIGMA_LIMITS,
     UncertaintyModel,
@@ -71,4 +72,4 @@ from .navigation import navigation_noise
 
 __all__ = ["UncertaintyModel", "EpisodeErrors", "NAMED_SETS", "SIGMA_LIMITS", "get_uncertainty",
            "resolve_uncertainty", "error_stream", "navigation_noise", "TRUNCATION_SIGMA",
-           "N_NORMALS"]
+           "N_NORMALS", "MODEL_VERSION"]

@@ -14,7 +14,12 @@ from ..validation import InvalidTypeError, require_number
 from .navigation import _weights
 
 __all__ = ["UncertaintyModel", "SIGMA_LIMITS", "NAMED_SETS", "get_uncertainty",
-           "resolve_uncertainty"]
+           "resolve_uncertainty", "MODEL_VERSION"]
+
+#: version of what a model's fields mean and how the envs draw and apply them: results flown
+#: under another version are other results (a campaign's store records it and refuses to mix
+#: them); raised by any change to the draws, their truncation or their effect on an episode
+MODEL_VERSION = 1
 
 
 class _Limit(NamedTuple):
@@ -147,9 +152,12 @@ class UncertaintyModel:
     ``nav_velocity_noise_m_s``
     ======================================  ===========  =======================================
 
-    A model within the limits may still be refused at reset by a task for a draw that puts
-    its start at or below the terminal radius or the dry mass (the vehicle and the start are
-    the scenario's, not the model's).
+    A model within the limits may still be refused by a task (the vehicle and the start are
+    the scenario's, not the model's): when the task is built, a ``mass_kg`` whose truncated
+    draw (±:data:`~lunar_env.uncertainty.TRUNCATION_SIGMA` σ) reaches the dry mass from the
+    lightest start; at reset, a draw that puts a start at or below the terminal radius.
+
+    :data:`MODEL_VERSION` numbers what the fields mean and how they are drawn and applied.
 
     Raises
     ------
