@@ -31,9 +31,22 @@ from guidance.evaluation.compare import (
 from guidance.evaluation.report import markdown_table, publish_report, write_report
 from guidance.law import GuidanceLaw
 from guidance.registry import LawContext, build_law, law_names, parse_law_spec
-from optimizers.common.cli import check_env, user_input_errors
+from optimizers.common.cli import (
+    check_env,
+    count_type,
+    output_dir_type,
+    output_file_type,
+    ray_address_type,
+    seed_type,
+    user_input_errors,
+)
 
 __all__ = ["main", "evaluate_run"]
+
+#: largest --n-states, --expert-states and --trace-cases (each case is flown in one batch)
+MAX_STATES = 1_000_000
+#: largest --torch-threads and --optimum-workers
+MAX_WORKERS = 1024
 
 
 def evaluate_run(run_dir: str | Path, n_states: int = DEFAULT_N_STATES, seed: int = DEFAULT_SEED,
@@ -79,20 +92,25 @@ def main(argv: list[str] | None = None) -> int:
                    help="guidance laws by spec, NAME[:ARG][:KEY=VALUE,...] (e.g. apollo "
                         "zem-zev:kr=8 gravity-turn); known names: "
                         + ", ".join(law_names()))
-    p.add_argument("--n-states", type=int, default=DEFAULT_N_STATES)
-    p.add_argument("--seed", type=int, default=DEFAULT_SEED)
-    p.add_argument("--expert-states", type=int, default=None,
+    p.add_argument("--n-states", type=count_type(1, MAX_STATES), default=DEFAULT_N_STATES,
+                   help=f"dispersed initial states, 1 to {MAX_STATES} (default "
+                        f"{DEFAULT_N_STATES})")
+    p.add_argument("--seed", type=seed_type, default=DEFAULT_SEED,
+                   help=f"seed of the initial states, 0 to 2**63 - 1 (default {DEFAULT_SEED})")
+    p.add_argument("--expert-states", type=count_type(0, MAX_STATES), default=None,
                    help="cases flown by the env family's closed-loop expert (default: the "
                         "family's, 20 planar, 200 pinpoint; 0: skip)")
     p.add_argument("--no-open-loop", action="store_true", help="skip the open-loop replay")
-    p.add_argument("--trace-cases", type=int, default=3)
-    p.add_argument("--out", default=None, help="output directory (default results/evaluate)")
-    p.add_argument("--json", default=None, help="also write the JSON report to this file")
-    p.add_argument("--torch-threads", type=int, default=1,
+    p.add_argument("--trace-cases", type=count_type(0, MAX_STATES), default=3)
+    p.add_argument("--out", type=output_dir_type, default=None,
+                   help="output directory (default results/evaluate)")
+    p.add_argument("--json", type=output_file_type, default=None,
+                   help="also write the JSON report to this file")
+    p.add_argument("--torch-threads", type=count_type(1, MAX_WORKERS), default=1,
                    help="torch threads for SB3 inference (default 1, as in training)")
-    p.add_argument("--optimum-workers", type=int, default=1,
+    p.add_argument("--optimum-workers", type=count_type(1, MAX_WORKERS), default=1,
                    help="processes for the per-case optimum (pinpoint: cached on disk)")
-    p.add_argument("--address", default=None,
+    p.add_argument("--address", type=ray_address_type, default=None,
                    help="Ray cluster for the per-case optima ('auto', 'host:port', "
                         "'local'); default $RAY_ADDRESS, else --optimum-workers local processes")
     args = p.parse_args(argv)
@@ -100,13 +118,11 @@ def main(argv: list[str] | None = None) -> int:
 
     from agents.common.runs import read_run, run_dir_of
 
-    torch.set_num_threads(max(args.torch_threads, 1))
+    torch.set_num_threads(args.torch_threads)
 
     env_id = args.env
     env_kwargs = None
     laws: list[GuidanceLaw] = []
-    if args.n_states < 1:
-        p.error(f"--n-states {args.n_states}: must be >= 1")
     for m in args.model:
         with user_input_errors(p, prefix=f"--model {m}"):
             run_dir = run_dir_of(m)

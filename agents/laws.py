@@ -10,7 +10,7 @@ import numpy as np
 from agents.features import augment_observation, feature_constants, validate_features
 from guidance.law import FlightComputer, GuidanceLaw, Navigation
 
-__all__ = ["SB3Law", "law_from_spec"]
+__all__ = ["SB3Law", "law_from_spec", "run_env_kwargs", "run_identity"]
 
 
 class SB3Law(GuidanceLaw):
@@ -90,4 +90,31 @@ def run_env_kwargs(spec) -> dict | None:
     return {k: v for k, v in (hp.get("env_kwargs") or {}).items() if k != "uncertainty"}
 
 
+def run_identity(spec) -> dict:
+    """What the flights of a learned law depend on besides its spec: the SHA-256 of the model
+    file and of its observation statistics (the files :func:`agents.common.runs.load_trained`
+    reads; a run retrained in place, or its newest checkpoint replaced, is another law) and
+    the observation features it was trained with. Empty for a spec without an existing run."""
+    import hashlib
+
+    from agents.common.runs import read_run, trained_files
+
+    if spec.argument is None or not Path(spec.argument).exists():
+        return {}
+
+    def sha256(path):
+        if path is None:
+            return None
+        h = hashlib.sha256()
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+        return h.hexdigest()
+
+    model, stats = trained_files(spec.argument, log=lambda msg: None)
+    return {"model_sha256": sha256(model), "vecnormalize_sha256": sha256(stats),
+            "obs_features": list(read_run(spec.argument)[1].get("obs_features") or [])}
+
+
 law_from_spec.env_kwargs = run_env_kwargs
+law_from_spec.identity = run_identity

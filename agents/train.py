@@ -56,6 +56,7 @@ import numpy as np
 import yaml
 
 from agents.common.runs import (
+    MAX_SB3_SEED,
     claim_run_dir,
     load_trained,
     next_run_dir,
@@ -73,10 +74,25 @@ from agents.hyperparams import (
 )
 from agents.rl.race import race_pending, race_trained_to_end, seed_race
 from agents.rl.training import DEFAULT_ENV_ID, make_training_env, train
-from optimizers.common.cli import check_env, user_input_errors
+from optimizers.common.cli import (
+    check_env,
+    count_type,
+    input_path_type,
+    output_dir_type,
+    ray_address_type,
+    seed_type,
+    user_input_errors,
+)
 
 __all__ = ["main", "build_parser", "train", "make_training_env", "load_trained", "next_run_dir",
            "DEFAULT_ENV_ID"]
+
+
+#: largest env-step count (-n, --save-freq, --summary-every)
+MAX_STEPS = 10**12
+#: largest count of states, trials, envs, threads and workers
+MAX_STATES = 1_000_000
+MAX_WORKERS = 1024
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -87,68 +103,76 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--algo", default="ppo", choices=ALGOS, help="RL algorithm (default: ppo)")
     p.add_argument("--env", default=DEFAULT_ENV_ID, help=f"env id (default: {DEFAULT_ENV_ID})")
     p.add_argument("--hyperparams-file", "--conf-file", dest="hyperparams_file", default=None,
+                   type=input_path_type,
                    help="Zoo-style YAML keyed by env id (default: agents/hyperparams/<algo>.yml)")
     p.add_argument("--config", default="default",
                    help="profile of the YAML entry: 'default' or e.g. 'quick' (<env>@quick)")
     p.add_argument("--quick", action="store_true", help="same as --config quick")
     p.add_argument("--hyperparams", "-params", nargs="+", default=[], metavar="KEY=VALUE",
                    help="override hyperparameters (values parsed as YAML; dotted keys nest)")
-    p.add_argument("-n", "--n-timesteps", type=int, default=None, help="override n_timesteps")
-    p.add_argument("--n-envs", type=int, default=None, help="override n_envs")
-    p.add_argument("--seed", type=int, default=None,
-                   help="random seed (default: drawn and recorded in args.yml)")
-    p.add_argument("--log-folder", "-f", default="runs", help="parent of the run directories")
-    p.add_argument("--run-dir", default=None, help="explicit run directory (must not exist)")
-    p.add_argument("--resume", default=None, metavar="RUN_DIR",
+    p.add_argument("-n", "--n-timesteps", type=count_type(1, MAX_STEPS), default=None,
+                   help="override n_timesteps")
+    p.add_argument("--n-envs", type=count_type(1, MAX_WORKERS), default=None,
+                   help="override n_envs")
+    p.add_argument("--seed", type=count_type(0, MAX_SB3_SEED), default=None,
+                   help=f"random seed, 0 to {MAX_SB3_SEED} (default: drawn and recorded in "
+                        "args.yml)")
+    p.add_argument("--log-folder", "-f", type=output_dir_type, default="runs",
+                   help="parent of the run directories")
+    p.add_argument("--run-dir", type=output_dir_type, default=None,
+                   help="explicit run directory (must not exist)")
+    p.add_argument("--resume", type=input_path_type, default=None, metavar="RUN_DIR",
                    help="continue the run in RUN_DIR from its newest checkpoint")
-    p.add_argument("--init-from", default=None, metavar="MODEL",
+    p.add_argument("--init-from", type=input_path_type, default=None, metavar="MODEL",
                    help="start a new run from this model's policy weights (run dir or .zip, "
                         "e.g. a behaviour-cloning run of agents.imitation) and its "
                         "VecNormalize statistics; to keep those fixed, as a fine-tuned policy "
                         "needs, set normalize.update=false")
-    p.add_argument("--save-freq", type=int, default=None,
+    p.add_argument("--save-freq", type=count_type(1, MAX_STEPS), default=None,
                    help="checkpoint every this many env steps (default: n_timesteps/20)")
     p.add_argument("--device", default="cpu", help="torch device (default: cpu)")
-    p.add_argument("--torch-threads", type=int, default=1,
+    p.add_argument("--torch-threads", type=count_type(1, MAX_WORKERS), default=1,
                    help="torch intra-op threads (default 1: the env batch uses the other core)")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--no-tensorboard", action="store_true", help="do not write TensorBoard logs")
-    p.add_argument("--eval-states", type=int, default=None,
+    p.add_argument("--eval-states", type=count_type(0, MAX_STATES), default=None,
                    help="dispersed initial states for the final comparison (0: skip; "
                         "default 1000, 16 with --quick)")
-    p.add_argument("--eval-seed", type=int, default=2026,
+    p.add_argument("--eval-seed", type=seed_type, default=2026,
                    help="seed of the evaluation set of initial states")
-    p.add_argument("--eval-expert-states", type=int, default=None,
+    p.add_argument("--eval-expert-states", type=count_type(0, MAX_STATES), default=None,
                    help="states the (slow) closed-loop re-planning expert is run on "
                         "(default: agents.evaluate's default)")
     p.add_argument("--no-eval", action="store_true", help="same as --eval-states 0")
-    p.add_argument("--verbose", "-v", type=int, default=0,
+    p.add_argument("--verbose", "-v", type=count_type(0, 2), default=0,
                    help="SB3 verbosity (default 0: progress bar and a one-line summary every "
                         "5 %% of training; 1 adds SB3's full logger table after every rollout, "
                         "which TensorBoard always gets)")
-    p.add_argument("--summary-every", type=int, default=None, metavar="STEPS",
+    p.add_argument("--summary-every", type=count_type(0, MAX_STEPS), default=None,
+                   metavar="STEPS",
                    help="env steps between console summary lines (default n_timesteps/20; "
                         "0: none)")
     o = p.add_argument_group("hyperparameter search (Optuna on the executor; agents.rl.search)")
     o.add_argument("--optimize", "--optimize-hyperparameters", "-optimize", action="store_true",
                    help="search PPO hyperparameters instead of training once; writes the best "
                         "as a YAML entry (<log-folder>/optimize/<env>_<k>/best.yml)")
-    o.add_argument("--n-trials", type=int, default=20, help="trials (default 20)")
+    o.add_argument("--n-trials", type=count_type(1, MAX_STATES), default=20,
+                   help="trials (default 20)")
     o.add_argument("--sampler", default="tpe", choices=("tpe", "random"))
     o.add_argument("--pruner", default="median", choices=("median", "halving", "none"))
-    o.add_argument("--n-startup-trials", type=int, default=5,
+    o.add_argument("--n-startup-trials", type=count_type(0, MAX_STATES), default=5,
                    help="random trials before TPE, and trials before the pruner acts")
-    o.add_argument("--n-evaluations", type=int, default=5,
+    o.add_argument("--n-evaluations", type=count_type(1, MAX_STATES), default=5,
                    help="evaluations (pruning points) per trial")
-    o.add_argument("--tune-states", type=int, default=64,
+    o.add_argument("--tune-states", type=count_type(1, MAX_STATES), default=64,
                    help="dispersed initial states each evaluation flies")
     o.add_argument("--storage", default=None,
                    help="Optuna storage: RDB URL or journal file (default <out>/study.journal)")
     o.add_argument("--study-name", default=None)
-    o.add_argument("--address", default=None,
+    o.add_argument("--address", type=ray_address_type, default=None,
                    help="Ray cluster for the trials ('auto', 'host:port', 'local'); default "
                         "$RAY_ADDRESS, else a local process pool")
-    o.add_argument("--workers", type=int, default=None,
+    o.add_argument("--workers", type=count_type(0, MAX_WORKERS), default=None,
                    help="local processes for the trials (default: all cores)")
     return p
 
@@ -230,8 +254,6 @@ def main(argv: list[str] | None = None) -> int:
             except FileNotFoundError as exc:
                 parser.error(f"--resume {run_dir}: {exc}")
         if args.n_timesteps is not None:  # allow extending a finished run
-            if args.n_timesteps < 1:
-                parser.error(f"-n {args.n_timesteps}: must be >= 1")
             hp["n_timesteps"] = int(args.n_timesteps)
         for key in ("no_progress", "no_eval", "eval_states", "eval_expert_states"):
             if f"--{key.replace('_', '-')}" in argv_list:

@@ -35,6 +35,12 @@ mylaws`` imports it, in every worker too)::
             return ThrustCommand(-nav.frame.g)
 
     register_law("hover", lambda spec, context: Hover())
+
+A factory may carry three attributes: ``env_kwargs(spec)`` (the env arguments its law must
+fly with, :func:`required_env_kwargs`), ``identity(spec)`` (what its law's flights depend on
+besides the spec, e.g. a model file's SHA-256, :func:`law_identity`: a campaign keys the law's
+results by it) and ``validate(spec, context)`` (the checks of the argument and options, where
+building the law needs what only a campaign computes, :func:`validate_law`).
 """
 
 from __future__ import annotations
@@ -49,7 +55,8 @@ from typing import Any
 from lunar_env.families import load_entry_point
 
 __all__ = ["LawSpec", "LawContext", "register_law", "registered_law", "law_names",
-           "law_summaries", "required_env_kwargs", "build_law", "parse_law_spec",
+           "law_summaries", "required_env_kwargs", "law_identity", "validate_law", "build_law",
+           "parse_law_spec",
            "import_law_modules", "flag", "require_no_argument", "LAW_ENTRY_POINT_GROUP"]
 
 #: the ``importlib.metadata`` entry-point group of installed packages' laws
@@ -150,6 +157,38 @@ def required_env_kwargs(spec: LawSpec) -> dict | None:
     return None if fn is None else fn(spec)
 
 
+def law_identity(spec: LawSpec) -> dict[str, Any]:
+    """What the flights of the law of ``spec`` depend on, for stores of results: its full spec
+    (:meth:`LawSpec.resolved`: the label drops a run's directories, so two runs of one name in
+    two folders share a label) and whatever its factory declares through an attribute
+    ``identity(spec) -> dict`` (a learned law: the bytes of its model file, so a run retrained
+    in place is another law). JSON-ready."""
+    ident: dict[str, Any] = {"spec": spec.resolved()}
+    fn = getattr(registered_law(spec.name), "identity", None)
+    if fn is not None:
+        ident.update(fn(spec))
+    return ident
+
+
+def validate_law(spec: LawSpec, context: LawContext) -> None:
+    """Check ``spec``'s argument and options before any flight: the factory's attribute
+    ``validate(spec, context)`` where it declares one (a law whose construction needs what
+    only a campaign computes, e.g. the per-case optimum), else the law is built once and
+    dropped.
+
+    Raises
+    ------
+    ValueError
+        What the factory raises for a bad argument or option (named).
+    """
+    factory = registered_law(spec.name)
+    check = getattr(factory, "validate", None)
+    if check is not None:
+        check(spec, context)
+    else:
+        factory(spec, context)
+
+
 def import_law_modules(modules) -> None:
     """Import users' law modules (each registers its laws when imported): a module name, or
     the path of a ``.py`` file.
@@ -232,6 +271,19 @@ class LawSpec:
         tail = self.argument.rstrip("/").rsplit("/", 1)[-1]
         opts = ",".join(f"{k}={v}" for k, v in self.options.items())
         return f"{self.name}:{tail}" + (f":{opts}" if opts else "")
+
+    def resolved(self) -> str:
+        """The spec in full: the argument as an absolute path with links resolved where it
+        names an existing file or directory (as given otherwise), the options sorted."""
+        import os
+
+        parts = [self.name]
+        if self.argument is not None:
+            arg = self.argument
+            parts.append(os.path.realpath(arg) if os.path.exists(arg) else arg)
+        if self.options:
+            parts.append(",".join(f"{k}={v}" for k, v in sorted(self.options.items())))
+        return ":".join(parts)
 
     def option(self, key: str, convert: Callable[[str], Any], default: Any) -> Any:
         """Option ``key`` converted by ``convert`` (``default`` if absent); ``ValueError``

@@ -92,7 +92,7 @@ def test_a_bug_during_training_keeps_its_traceback(monkeypatch, tmp_path):
     (["--env-kwargs", '{"bogus": 1}'], "bogus"),
     (["--env-kwargs", "{nope"], "is not JSON"),
     (["--model", "/nonexistent/run"], "--model /nonexistent/run"),
-    (["--n-states", "0"], "--n-states 0"),
+    (["--n-states", "0"], "argument --n-states: 0 is out of range; allowed: 1 to"),
 ])
 def test_agents_evaluate_usage_errors(argv, expected, capsys):
     from agents.evaluate import main
@@ -104,8 +104,8 @@ def test_agents_evaluate_usage_errors(argv, expected, capsys):
 @pytest.mark.parametrize("argv, expected", [
     (["--env", "Nope-v0"], "'Nope-v0' is not a registered"),
     (["--env-kwargs", "dt_s=-1"], "dt_s = -1"),
-    (["--n", "0"], "--n 0: must be >= 1"),
-    (["--noise", "-0.5"], "--noise -0.5"),
+    (["--n", "0"], "argument --n: 0 is out of range; allowed: 1 to"),
+    (["--noise", "-0.5"], "argument --noise: -0.5 is out of range; allowed: finite and >= 0"),
     (["--minari", "optimal"], "NAME-v<version>"),
 ])
 def test_agents_dataset_usage_errors(argv, expected, capsys):
@@ -223,3 +223,103 @@ def test_optimizer_commands_refuse_bad_arguments_in_one_line(command, argv, expe
         line = _usage_error(reproduce, [command, *argv], capsys)
         assert line.startswith(f"python -m optimizers.reproduce {command}: error:")
     assert expected in line, line
+
+
+_NOWHERE = "/nonexistent/run"
+
+# (command, argv, text the one line must contain) of the agents' commands: every bad number or
+# path names its option and what is allowed, before any work
+_AGENT_BAD_ARGUMENTS = [
+    ("evaluate", ["--n-states", "-1"], "argument --n-states: -1 is out of range; allowed: 1 to"),
+    ("evaluate", ["--seed", "-1"], "argument --seed: -1 is out of range; allowed: 0 to 2**63 - 1"),
+    ("evaluate", ["--seed", str(2**70)], f"argument --seed: {2**70} is out of range"),
+    ("evaluate", ["--expert-states", "-2"], "argument --expert-states: -2 is out of range"),
+    ("evaluate", ["--trace-cases", "many"], "argument --trace-cases: 'many' is not an integer"),
+    ("evaluate", ["--torch-threads", "0"], "argument --torch-threads: 0 is out of range"),
+    ("evaluate", ["--optimum-workers", "0"], "argument --optimum-workers: 0 is out of range"),
+    ("evaluate", ["--json", "{tmp}"], "argument --json: {tmp} is a directory; give a file name"),
+    ("evaluate", ["--out", "{file}"], "argument --out: {file} is a file, not a directory"),
+    ("evaluate", ["--address", "garbage"], "argument --address: 'garbage' is not a Ray address"),
+    ("train", ["-n", "0"], "argument -n/--n-timesteps: 0 is out of range; allowed: 1 to"),
+    ("train", ["--n-envs", "-1"], "argument --n-envs: -1 is out of range; allowed: 1 to"),
+    ("train", ["--seed", "-1"], "argument --seed: -1 is out of range; allowed: 0 to 2147483647"),
+    ("train", ["--seed", str(2**32)], f"argument --seed: {2**32} is out of range"),
+    ("train", ["--save-freq", "0"], "argument --save-freq: 0 is out of range"),
+    ("train", ["--torch-threads", "0"], "argument --torch-threads: 0 is out of range"),
+    ("train", ["--eval-states", "-1"], "argument --eval-states: -1 is out of range"),
+    ("train", ["--eval-seed", str(2**70)], "argument --eval-seed"),
+    ("train", ["--verbose", "3"], "argument --verbose/-v: 3 is out of range; allowed: 0 to 2"),
+    ("train", ["--summary-every", "-1"], "argument --summary-every: -1 is out of range"),
+    ("train", ["--n-trials", "0"], "argument --n-trials: 0 is out of range"),
+    ("train", ["--tune-states", "x"], "argument --tune-states: 'x' is not an integer"),
+    ("train", ["--workers", "-1"], "argument --workers: -1 is out of range"),
+    ("train", ["--address", "host:0"], "argument --address: 'host:0' is not a Ray address"),
+    ("train", ["--run-dir", "{file}"], "argument --run-dir: {file} is a file, not a directory"),
+    ("train", ["--log-folder", "/dev/null/runs"], "argument --log-folder/-f: /dev/null/runs "
+                                                  "cannot be created: /dev/null is a file"),
+    ("train", ["--resume", _NOWHERE], f"argument --resume: {_NOWHERE} does not exist"),
+    ("train", ["--init-from", _NOWHERE], f"argument --init-from: {_NOWHERE} does not exist"),
+    ("train", ["--hyperparams-file", _NOWHERE], "argument --hyperparams-file/--conf-file: "
+                                                f"{_NOWHERE} does not exist"),
+    ("dataset", ["--n", "-5"], "argument --n: -5 is out of range; allowed: 1 to"),
+    ("dataset", ["--seed", str(2**70)], "argument --seed"),
+    ("dataset", ["--workers", "0"], "argument --workers: 0 is out of range"),
+    ("dataset", ["--shard-size", "0"], "argument --shard-size: 0 is out of range"),
+    ("dataset", ["--n-steps", "1"], "argument --n-steps: 1 is out of range; allowed: 2 to"),
+    ("dataset", ["--noise", "nan"], "argument --noise: nan is out of range; allowed: finite"),
+    ("dataset", ["--tol-radius-m", "0"], "argument --tol-radius-m: 0 is out of range; "
+                                         "allowed: finite and > 0"),
+    ("dataset", ["--tol-speed-m-s", "fast"], "argument --tol-speed-m-s: 'fast' is not a number"),
+    ("dataset", ["--out", "{tmp}"], "argument --out: {tmp} is a directory; give a file name"),
+    ("dataset", ["--address", "garbage"], "argument --address"),
+    ("imitation", ["bc", "--seed", "-1"], "argument --seed: -1 is out of range"),
+    ("imitation", ["bc", "--torch-threads", "0"], "argument --torch-threads: 0 is out of range"),
+    ("imitation", ["bc", "--eval-states", "-1"], "argument --eval-states: -1 is out of range"),
+    ("imitation", ["bc", "--eval-seed", "-1"], "argument --eval-seed: -1 is out of range"),
+    ("imitation", ["bc", "--run-dir", "{file}"], "argument --run-dir: {file} is a file"),
+    ("imitation", ["bc", "--log-folder", "/dev/null/runs"], "argument --log-folder/-f"),
+    ("imitation", ["bc", "--resume", _NOWHERE], f"argument --resume: {_NOWHERE} does not exist"),
+    ("imitation", ["dagger", "--init", _NOWHERE], f"argument --init: {_NOWHERE} does not exist"),
+    ("imitation", ["evaluate", "--n-states", "0"], "argument --n-states: 0 is out of range"),
+    ("imitation", ["evaluate", "--seed", str(2**70)], "argument --seed"),
+    ("imitation", ["evaluate", "--expert-states", "-1"], "argument --expert-states"),
+    ("imitation", ["evaluate", "--json", "{tmp}"], "argument --json: {tmp} is a directory"),
+    ("imitation", ["evaluate", "--out", "{file}"], "argument --out: {file} is a file"),
+]
+
+
+@pytest.mark.parametrize("command, argv, expected", _AGENT_BAD_ARGUMENTS,
+                         ids=[f"{c}-{' '.join(a)[:40]}" for c, a, _ in _AGENT_BAD_ARGUMENTS])
+def test_agent_commands_refuse_bad_arguments_in_one_line(command, argv, expected, tmp_path,
+                                                         capsys):
+    """``python -m agents.evaluate``, ``python train.py``, ``lunar dataset`` and ``python -m
+    agents.imitation``: one argparse-style line naming the option and what is allowed, exit 2,
+    no traceback, nothing written."""
+    from agents.evaluate import main as evaluate
+    from agents.imitation.cli import main as imitation
+    from agents.imitation.make_dataset import main as dataset
+    from agents.train import main as train
+
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    fill = {"{tmp}": str(tmp_path), "{file}": str(a_file)}
+    argv = [fill.get(a, a) for a in argv]
+    for k, v in fill.items():
+        expected = expected.replace(k, v)
+    runs = ["--log-folder", str(tmp_path / "runs")]
+    main, prog, extra = {
+        "evaluate": (evaluate, "python -m agents.evaluate", []),
+        "train": (train, "train.py", [] if "--log-folder" in argv else runs),
+        "dataset": (dataset, "lunar dataset", []),
+        "imitation": (imitation, "python -m agents.imitation",
+                      runs if argv[0] != "evaluate" and "--log-folder" not in argv else []),
+    }[command]
+    if command == "imitation":  # a subcommand's parser names it
+        prog = f"{prog} {argv[0]}"
+        argv = [argv[0], *extra, *argv[1:]]
+    else:
+        argv = [*extra, *argv]
+    line = _usage_error(main, argv, capsys)
+    assert line.startswith(f"{prog}: error:"), line
+    assert expected in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]

@@ -33,11 +33,14 @@ from optimizers.common.checkpoint import atomic_write_bytes
 from optimizers.common.processes import exit_with_parent
 
 __all__ = ["CKPT_RE", "next_run_dir", "claim_run_dir", "run_dir_of", "read_run", "checkpoints",
-           "latest_checkpoint", "resumable_checkpoint", "load_trained", "write_text_atomic",
-           "save_model_atomic", "save_vecnormalize_atomic", "algo_class", "newest_loadable",
-           "exit_with_parent"]
+           "latest_checkpoint", "resumable_checkpoint", "trained_files", "load_trained",
+           "write_text_atomic", "save_model_atomic", "save_vecnormalize_atomic", "algo_class",
+           "newest_loadable", "exit_with_parent", "MAX_SB3_SEED"]
 
 CKPT_RE = re.compile(r"^rl_model_(\d+)_steps\.zip$")
+#: largest seed of a training run: SB3 seeds numpy's global generator (``np.random.seed``
+#: takes seeds below 2**32), and a seed race or DAgger's roll-outs add offsets to it
+MAX_SB3_SEED = 2**31 - 1
 
 
 def algo_class(algo: str):
@@ -270,6 +273,37 @@ def resumable_checkpoint(run_dir: str | Path, *, needs_vecnormalize: bool,
                             f"({details}); the run cannot be resumed")
 
 
+def trained_files(run_dir_or_model: str | Path, log=print) -> tuple[Path, Path | None]:
+    """The files :func:`load_trained` reads: ``(model zip, VecNormalize statistics or None)``.
+
+    A run directory gives its ``model.zip`` (else its newest complete checkpoint); a ``.zip``
+    path gives itself, with the statistics beside it (``vecnormalize.pkl``, or the matching
+    checkpoint's). ``log`` receives the messages of skipped incomplete checkpoints.
+
+    Raises
+    ------
+    FileNotFoundError
+        No model file (or, for a run directory without ``model.zip``, no complete checkpoint).
+    """
+    p = Path(run_dir_or_model)
+    if p.is_dir():
+        if (p / "model.zip").exists():
+            model_path, vn_path = p / "model.zip", p / "vecnormalize.pkl"
+        else:
+            _, cfg = read_run(p)
+            model_path, _, vn_path = resumable_checkpoint(
+                p, needs_vecnormalize=bool(cfg.get("normalize")), log=log)
+            vn_path = vn_path or model_path.parent / "missing.pkl"
+    else:
+        model_path = p
+        m = CKPT_RE.match(p.name)
+        vn_path = (_vecnormalize_path(p, int(m.group(1))) if m
+                   else p.parent / "vecnormalize.pkl")
+    if not model_path.exists():
+        raise FileNotFoundError(f"model file {model_path} does not exist")
+    return model_path, (vn_path if vn_path.exists() else None)
+
+
 def load_trained(run_dir_or_model: str | Path, env=None, device: str = "cpu"):
     """Load a trained model and its ``VecNormalize`` statistics.
 
@@ -288,21 +322,7 @@ def load_trained(run_dir_or_model: str | Path, env=None, device: str = "cpu"):
     algo : str
     """
     p = Path(run_dir_or_model)
-    if p.is_dir():
-        if (p / "model.zip").exists():
-            model_path, vn_path = p / "model.zip", p / "vecnormalize.pkl"
-        else:
-            args, cfg = read_run(p)
-            model_path, _, vn_path = resumable_checkpoint(
-                p, needs_vecnormalize=bool(cfg.get("normalize")))
-            vn_path = vn_path or model_path.parent / "missing.pkl"
-    else:
-        model_path = p
-        m = CKPT_RE.match(p.name)
-        vn_path = (_vecnormalize_path(p, int(m.group(1))) if m
-                   else p.parent / "vecnormalize.pkl")
-    if not model_path.exists():
-        raise FileNotFoundError(f"model file {model_path} does not exist")
+    model_path, vn_path = trained_files(p)
     algo = read_run(p)[0].get("algo")
     if algo is None:
         with zipfile.ZipFile(model_path) as zf:
@@ -310,4 +330,4 @@ def load_trained(run_dir_or_model: str | Path, env=None, device: str = "cpu"):
         algo = "sac" if '"log_ent_coef"' in data else ("td3" if "target_policy_noise" in data
                                                         else "ppo")
     model = algo_class(algo).load(model_path, env=env, device=device)
-    return model, (vn_path if vn_path.exists() else None), algo
+    return model, vn_path, algo

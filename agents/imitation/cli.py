@@ -13,13 +13,25 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.common.runs import write_text_atomic
+from agents.common.runs import MAX_SB3_SEED, write_text_atomic
 from agents.imitation.bc import _new_run_dir, train_bc
 from agents.imitation.dagger import train_dagger
-from optimizers.common.cli import check_env, user_input_errors
+from optimizers.common.cli import (
+    check_env,
+    count_type,
+    input_path_type,
+    output_dir_type,
+    output_file_type,
+    seed_type,
+    user_input_errors,
+)
 
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
 _HP_FILE = Path(__file__).parents[1] / "hyperparams" / "imitation.yml"
+#: largest --n-states, --expert-states and --eval-states
+MAX_STATES = 1_000_000
+#: largest --torch-threads
+MAX_THREADS = 1024
 
 
 # ----------------------------------------------------------------------------- CLI
@@ -35,37 +47,38 @@ def build_parser() -> argparse.ArgumentParser:
         s.add_argument("--dataset", default=None,
                        help="dataset .npz (lunar dataset), or minari:<dataset id> "
                             "for a Minari dataset of the env")
-        s.add_argument("--hyperparams-file", default=str(_HP_FILE))
+        s.add_argument("--hyperparams-file", type=input_path_type, default=str(_HP_FILE))
         s.add_argument("--config", default="default", help="profile: default or e.g. quick")
         s.add_argument("--quick", action="store_true", help="same as --config quick")
         s.add_argument("--hyperparams", "-params", nargs="+", default=[], metavar="KEY=VALUE")
-        s.add_argument("--seed", type=int, default=None)
-        s.add_argument("--log-folder", "-f", default="runs")
-        s.add_argument("--run-dir", default=None)
-        s.add_argument("--resume", default=None, metavar="RUN_DIR")
+        s.add_argument("--seed", type=count_type(0, MAX_SB3_SEED), default=None,
+                       help=f"random seed, 0 to {MAX_SB3_SEED} (default: drawn)")
+        s.add_argument("--log-folder", "-f", type=output_dir_type, default="runs")
+        s.add_argument("--run-dir", type=output_dir_type, default=None)
+        s.add_argument("--resume", type=input_path_type, default=None, metavar="RUN_DIR")
         s.add_argument("--device", default="cpu")
-        s.add_argument("--torch-threads", type=int, default=1)
+        s.add_argument("--torch-threads", type=count_type(1, MAX_THREADS), default=1)
         s.add_argument("--no-progress", action="store_true")
         s.add_argument("--no-tensorboard", action="store_true")
-        s.add_argument("--eval-states", type=int, default=0,
+        s.add_argument("--eval-states", type=count_type(0, MAX_STATES), default=0,
                        help="evaluate the final policy on this many dispersed states "
                             "(agents.evaluate; 0: skip)")
-        s.add_argument("--eval-seed", type=int, default=2026)
+        s.add_argument("--eval-seed", type=seed_type, default=2026)
         if mode == "dagger":
-            s.add_argument("--init", default=None,
+            s.add_argument("--init", type=input_path_type, default=None,
                            help="initial policy (BC run dir or PPO zip); default: BC first")
     e = sub.add_parser("evaluate", help="compare policies with agents.evaluate")
     e.add_argument("--env", default=DEFAULT_ENV_ID)
     e.add_argument("--model", action="append", default=[], metavar="NAME=PATH",
                    help="policy name and run dir / zip (repeatable)")
-    e.add_argument("--n-states", type=int, default=1000)
-    e.add_argument("--seed", type=int, default=2026)
-    e.add_argument("--expert-states", type=int, default=None,
+    e.add_argument("--n-states", type=count_type(1, MAX_STATES), default=1000)
+    e.add_argument("--seed", type=seed_type, default=2026)
+    e.add_argument("--expert-states", type=count_type(0, MAX_STATES), default=None,
                    help="cases flown by the env family's closed-loop expert (default: the "
                         "family's, 20 planar, 200 pinpoint; 0: skip)")
     e.add_argument("--no-open-loop", action="store_true")
-    e.add_argument("--out", default="results/imitation")
-    e.add_argument("--json", default=None)
+    e.add_argument("--out", type=output_dir_type, default="results/imitation")
+    e.add_argument("--json", type=output_file_type, default=None)
     return p
 
 
@@ -155,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.mode == "evaluate":
         return _evaluate_cli(args, parser)
-    th.set_num_threads(max(int(args.torch_threads), 1))
+    th.set_num_threads(args.torch_threads)
     argv_list = list(sys.argv[1:] if argv is None else argv)
     if args.resume:
         run_dir = Path(args.resume)

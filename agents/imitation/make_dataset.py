@@ -19,9 +19,24 @@ import os
 
 from agents.imitation.dataset import DEFAULT_ENV_ID, DEFAULT_OUT, generate
 from agents.imitation.families.pinpoint import PINPOINT_ACTION_NOISE, PINPOINT_TOLERANCES
-from optimizers.common.cli import check_env, user_input_errors
+from optimizers.common.cli import (
+    check_env,
+    count_type,
+    output_file_type,
+    ray_address_type,
+    real_type,
+    seed_type,
+    user_input_errors,
+)
 
 __all__ = ["main"]
+
+#: largest --n (trajectories held in memory until the dataset is written)
+MAX_TRAJECTORIES = 1_000_000
+#: largest --workers
+MAX_WORKERS = 1024
+#: largest --n-steps (RK4 steps of each solve)
+MAX_STEPS = 100_000
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,25 +49,28 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--env", default=DEFAULT_ENV_ID)
     p.add_argument("--env-kwargs", nargs="*", default=[], metavar="KEY=VALUE",
                    help="env constructor arguments (values parsed as YAML)")
-    p.add_argument("--n", type=int, default=1000, help="number of trajectories")
-    p.add_argument("--seed", type=int, default=0, help="seed of the initial-state draw")
-    p.add_argument("--out", default=None,
+    p.add_argument("--n", type=count_type(1, MAX_TRAJECTORIES), default=1000,
+                   help=f"number of trajectories, 1 to {MAX_TRAJECTORIES} (default 1000)")
+    p.add_argument("--seed", type=seed_type, default=0,
+                   help="seed of the initial-state draw, 0 to 2**63 - 1 (default 0)")
+    p.add_argument("--out", type=output_file_type, default=None,
                    help=f"output .npz (default data/imitation/<env>_n<n>_seed<seed>.npz; "
                         f"{DEFAULT_OUT} for the defaults)")
-    p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--address", default=None,
+    p.add_argument("--workers", type=count_type(1, MAX_WORKERS), default=2)
+    p.add_argument("--address", type=ray_address_type, default=None,
                    help="Ray cluster for the shards ('auto', 'host:port', 'local'); default "
                         "$RAY_ADDRESS, else --workers local processes")
-    p.add_argument("--shard-size", type=int, default=50)
-    p.add_argument("--n-steps", type=int, default=400, help="solver RK4 grid")
+    p.add_argument("--shard-size", type=count_type(1, MAX_TRAJECTORIES), default=50)
+    p.add_argument("--n-steps", type=count_type(2, MAX_STEPS), default=400,
+                   help="solver RK4 grid")
     p.add_argument("--check", default="doubling", choices=("grid", "doubling", "reference"))
-    p.add_argument("--tol-radius-m", type=float, default=None,
+    p.add_argument("--tol-radius-m", type=real_type(positive=True), default=None,
                    help="certification tolerance (default 1e-3 m soft landing, "
                         f"{PINPOINT_TOLERANCES['radius_m']:g} m gate miss pinpoint)")
-    p.add_argument("--tol-speed-m-s", type=float, default=None,
+    p.add_argument("--tol-speed-m-s", type=real_type(positive=True), default=None,
                    help="certification tolerance (default 1e-3 m/s soft landing, "
                         f"{PINPOINT_TOLERANCES['speed_m_s']:g} m/s gate speed pinpoint)")
-    p.add_argument("--noise", type=float, default=None,
+    p.add_argument("--noise", type=real_type(0.0), default=None,
                    help="pinpoint: standard deviation of the action noise on the expert's "
                         f"flights (default {PINPOINT_ACTION_NOISE:g}; 0: the optimal "
                         "trajectories themselves)")
@@ -70,12 +88,6 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--env-kwargs {item!r}: expected KEY=VALUE")
         k, v = item.split("=", 1)
         env_kwargs[k] = yaml.safe_load(v)
-    for flag, value, low in (("--n", args.n, 1), ("--workers", args.workers, 1),
-                             ("--shard-size", args.shard_size, 1), ("--n-steps", args.n_steps, 2)):
-        if value < low:
-            p.error(f"{flag} {value}: must be >= {low}")
-    if args.noise is not None and not (args.noise >= 0.0 and args.noise < float("inf")):
-        p.error(f"--noise {args.noise}: must be finite and >= 0")
     with user_input_errors(p):
         check_env(args.env, env_kwargs)
     if args.out is None:

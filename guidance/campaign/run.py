@@ -13,6 +13,17 @@ is written atomically to the campaign's store as it finishes, so a killed campai
 where it stopped and ends with the same numbers. Adding a law to a finished campaign flies
 only that law.
 
+**Results never mix.** The store's identity (:meth:`CampaignConfig.identity`) holds what every
+result depends on: env, uncertainty model and its version, cases, seed, env arguments, chunk
+size; a store of other settings is refused. What one law or one curve point depends on is in
+its tasks' keys (:func:`campaign_tasks`): the law's full spec and the fingerprint of its files
+(a run's path in full and its model's bytes: two runs of one name in two folders, or a run
+retrained in place, are two laws), the error scale, and the number of cases flown at it. Every
+result read back is checked against its key (:func:`campaign_schema`: the cases the chunk names,
+lists of one length); one that fails is moved aside and flown again. One process writes a
+campaign directory at a time (:class:`~optimizers.common.lock.DirectoryLock`, held for the
+whole run), and every law is built once before any work (:func:`check_laws`).
+
 **Reference.** The omniscient optimum of a case is the certified minimum-fuel landing of its
 *true* plant (thrust and Isp scales) from its *true* start (entry and wet-mass errors), as if
 the flight computer knew everything (a misalignment it knew would be steered out at no fuel
@@ -43,12 +54,23 @@ from typing import Any
 import numpy as np
 
 from guidance.campaign.statistics import footprint_ellipse, wilson_interval
-from lunar_env.uncertainty import UncertaintyModel, resolve_uncertainty
+from lunar_env.uncertainty import MODEL_VERSION, UncertaintyModel, resolve_uncertainty
 from optimizers.common.checkpoint import atomic_write_bytes
-from optimizers.common.executor import ResultStore, Task, TaskKey, get_executor, run_tasks
+from optimizers.common.executor import (
+    Executor,
+    ResultSchema,
+    ResultStore,
+    Task,
+    TaskKey,
+    get_executor,
+    run_tasks,
+)
+from optimizers.common.lock import DirectoryLock
+from optimizers.common.store import identity_fingerprint
 
 __all__ = ["CampaignConfig", "CampaignResult", "run_campaign", "fly_chunk", "reference_chunk",
-           "summarise_law", "campaign_summary", "DEFAULT_SCALES", "SCHEMA_VERSION"]
+           "summarise_law", "campaign_summary", "check_laws", "check_scales", "campaign_tasks",
+           "campaign_schema", "curve_scales", "scale_text", "DEFAULT_SCALES", "SCHEMA_VERSION"]
 
 #: error scales of the robustness curve (× the campaign's uncertainty set)
 DEFAULT_SCALES = (0.0, 0.5, 1.0, 2.0, 3.0)
@@ -59,13 +81,25 @@ _CASE_KEYS = ("success", "touchdown_speed_m_s", "miss_distance_m", "fuel_kg", "t
               "propellant_left_kg", "downrange_offset_m", "crossrange_offset_m")
 _REF_KEYS = ("thrust_scale", "isp_scale", "mass_error_kg", "omniscient_fuel_kg")
 #: the reference tasks' key in the campaign's store, versioned: a store made by an older
-#: reference recomputes it (v2, issue 31: the pinpoint direct-method fallback)
+#: reference recomputes it (v2: the pinpoint direct-method fallback)
 _REF_TASK = "reference_v2"
+#: fields of every stored flight chunk (per-case lists: ``case`` and :data:`_CASE_KEYS`)
+_FLIGHT_FIELDS = ("case", *_CASE_KEYS, "n_decisions", "policy_wall_s")
+#: fields of every stored reference chunk (per-case lists: all but ``wall_s``)
+_REF_FIELDS = ("case", *_REF_KEYS, "omniscient_solver")
+
+
+def scale_text(scale: float) -> str:
+    """An error scale as task keys write it: 6 significant digits (``:g``) where they give the
+    scale exactly, else every digit (``repr``), so two scales never share a key."""
+    text = f"{float(scale):g}"
+    return text if float(text) == float(scale) else repr(float(scale))
 
 
 @dataclass(frozen=True)
 class CampaignConfig:
-    """What a campaign flies (its identity: a store made with other settings is refused).
+    """What a campaign flies (its identity, :meth:`identity`: a store made with other settings
+    is refused).
 
     Attributes
     ----------
@@ -81,7 +115,10 @@ class CampaignConfig:
     chunk : int
         Cases per task.
     scales : tuple of float
-        Error scales of the robustness curve (empty: no curve).
+        Error scales of the robustness curve (empty: no curve); repeats are dropped. Each
+        scaled model must be valid (:meth:`~lunar_env.uncertainty.UncertaintyModel.scaled`),
+        and two scales must differ in their first 6 significant digits (the tables' and the
+        curve's precision; scale 1, the main run, is always flown).
     curve_cases : int
         Cases flown at each scale of the curve (the first ones).
     imports : tuple of str
@@ -108,7 +145,13 @@ class CampaignConfig:
         require_integer("cases", self.cases, minimum=1)
         require_integer("chunk", self.chunk, minimum=1)
         require_integer("curve_cases", self.curve_cases, minimum=1)
-        require_integer("seed", self.seed)
+        require_integer("seed", self.seed, minimum=0)
+        from optimizers.common.cli import MAX_SEED
+
+        if self.seed + self.cases - 1 > MAX_SEED:
+            raise ValueError(f"seed = {self.seed} with {self.cases} cases reaches "
+                             f"{self.seed + self.cases - 1}; case k is reset with seed + k, "
+                             f"at most 2**63 - 1: allowed seeds 0 to {MAX_SEED - self.cases + 1}")
         if not self.laws:
             raise ValueError("a campaign needs at least one law (--laws)")
         import_law_modules(self.imports)
@@ -116,23 +159,71 @@ class CampaignConfig:
         names = [s.label() for s in specs]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
-            raise ValueError(f"law(s) {', '.join(dup)} given twice")
+            raise ValueError(f"law(s) {', '.join(dup)} given twice (--laws)")
         if "uncertainty" in self.env_kwargs:
             raise ValueError("give the uncertainty set as --uncertainty, not in --env-kwargs")
-        for s in self.scales:
-            if not (math.isfinite(float(s)) and float(s) >= 0.0):
-                raise ValueError(f"robustness-curve scale {s!r} must be finite and >= 0")
+        object.__setattr__(self, "scales", curve_scales(self.uncertainty, self.scales))
 
     def identity(self) -> dict[str, Any]:
-        """The settings the stored results belong to (laws excluded: adding a law reuses the
-        others' flights)."""
+        """The settings every stored result belongs to: env, uncertainty model and its
+        version (:data:`~lunar_env.uncertainty.MODEL_VERSION`), cases, seed, env arguments
+        and chunk size.
+
+        What belongs to one law or one curve point is in its tasks' keys instead
+        (:func:`campaign_tasks`), so adding a law or a scale to a finished campaign reuses
+        the other flights: the law's full spec and the fingerprint of its files
+        (:func:`guidance.registry.law_identity`), the error scale and the number of cases
+        flown at it."""
         return {"env": self.env_id, "uncertainty": self.uncertainty.as_dict(),
+                "uncertainty_model_version": MODEL_VERSION,
                 "cases": int(self.cases), "seed": int(self.seed),
                 "env_kwargs": self.env_kwargs, "chunk": int(self.chunk)}
+
+    @property
+    def curve_n(self) -> int:
+        """Cases flown at each scale of the robustness curve (the first ones)."""
+        return min(self.curve_cases, self.cases)
 
     def chunks(self, n_cases: int) -> list[tuple[int, int]]:
         """(first case, number of cases) of each task covering cases 0..n_cases-1."""
         return [(a, min(self.chunk, n_cases - a)) for a in range(0, n_cases, self.chunk)]
+
+
+def curve_scales(model: UncertaintyModel, scales) -> tuple[float, ...]:
+    """The robustness curve's error scales: ``scales`` without repeats, each checked (finite,
+    >= 0, ``model`` scaled by it valid, and distinct from the others, scale 1 included, in
+    its first 6 significant digits).
+
+    Raises
+    ------
+    ValueError
+        Naming the scale and what is wrong with it.
+    """
+    out: list[float] = []
+    shown = {"1": 1.0}
+    for raw in scales:
+        try:
+            s = float(raw)
+        except (TypeError, ValueError):
+            raise ValueError(f"robustness-curve scale {raw!r} is not a number") from None
+        if not (math.isfinite(s) and s >= 0.0):
+            raise ValueError(f"robustness-curve scale {raw!r} must be finite and >= 0")
+        if s in out:
+            continue
+        text = f"{s:g}"
+        if text in shown and shown[text] != s:
+            other = "the main run's scale 1" if shown[text] == 1.0 else repr(shown[text])
+            raise ValueError(f"robustness-curve scale {s!r} is {other} to 6 significant "
+                             "digits, the precision of the tables and of the curve; give "
+                             "scales that differ within 6 digits")
+        try:
+            model.scaled(s)
+        except ValueError as exc:
+            raise ValueError(f"robustness-curve scale {s:g} takes the uncertainty model "
+                             f"beyond its limits: {exc}") from None
+        shown[text] = s
+        out.append(s)
+    return tuple(out)
 
 
 def _env_kwargs(env_kwargs: dict, model_dict: dict, scale: float) -> dict:
@@ -173,17 +264,27 @@ def reference_chunk(env_id: str, env_kwargs: dict, model_dict: dict, first: int,
 
 
 def fly_chunk(spec_text: str, env_id: str, env_kwargs: dict, model_dict: dict, scale: float,
-              first: int, n: int, seed: int, imports: tuple[str, ...] = ()) -> dict[str, Any]:
+              first: int, n: int, seed: int, imports: tuple[str, ...] = (),
+              law_files: dict | None = None) -> dict[str, Any]:
     """Executor task: law ``spec_text`` flown on cases first..first+n-1 with every error
     scaled by ``scale``; per-case outcomes (lists) and the law's decision cost. ``imports``:
-    the campaign's law modules (imported first)."""
+    the campaign's law modules (imported first). ``law_files``: what the law's factory
+    declared of its files when the campaign started (:func:`_law_files`); a law whose files
+    changed since (a run retrained in place) is refused with RuntimeError, so its flights
+    never mix with those of the model the campaign's keys name."""
     import sys
 
     from guidance.flight import fly
-    from guidance.registry import LawContext, build_law, import_law_modules
+    from guidance.registry import LawContext, build_law, import_law_modules, parse_law_spec
     from optimizers.optimum import optimum_family
 
     import_law_modules(imports)
+    if law_files is not None:
+        now = _law_files(parse_law_spec(spec_text))
+        if now != law_files:
+            raise RuntimeError(f"law {spec_text!r}: its files changed after the campaign "
+                               f"started ({law_files} then, {now} now); run the campaign "
+                               "again: the new files are another law, with their own tasks")
     kwargs = _env_kwargs(env_kwargs, model_dict, scale)
     _, nav0, _, core = _starts(env_id, kwargs, n, seed + first)
     scenario = core.scenario
@@ -214,6 +315,158 @@ def fly_chunk(spec_text: str, env_id: str, env_kwargs: dict, model_dict: dict, s
             "downrange_offset_m": off[:, 0].tolist(), "crossrange_offset_m": off[:, 1].tolist(),
             "n_decisions": int(ro.n_decisions), "policy_wall_s": float(ro.policy_wall_s),
             "flight_wall_s": wall, "name": law.name}
+
+
+def _law_files(spec) -> dict:
+    """The part of a law's identity its factory declares (:func:`guidance.registry.
+    law_identity` without the spec: e.g. a learned law's model bytes); checked again in each
+    worker, where the spec's path may resolve otherwise (another machine's mount)."""
+    from guidance.registry import law_identity
+
+    return {k: v for k, v in law_identity(spec).items() if k != "spec"}
+
+
+# -------------------------------------------------------------------------------------------
+# Checks, tasks and the store's schema
+# -------------------------------------------------------------------------------------------
+
+
+def check_scales(config: CampaignConfig) -> None:
+    """Build the env once under the campaign's uncertainty model at every error scale flown
+    (1 and the curve's), so a model a task refuses (e.g. a wet-mass error reaching the dry
+    mass) is refused before any work.
+
+    Raises
+    ------
+    ValueError
+        Naming the scale and the refused field.
+    """
+    from optimizers.common.cli import check_env
+
+    for scale in sorted({1.0, *config.scales}):
+        model = config.uncertainty if scale == 1.0 else config.uncertainty.scaled(scale)
+        try:
+            check_env(config.env_id, {**config.env_kwargs, "uncertainty": model})
+        except ValueError as exc:
+            where = "" if scale == 1.0 else f"robustness-curve scale {scale:g}: "
+            raise ValueError(f"{where}{exc}") from None
+
+
+def check_laws(config: CampaignConfig) -> dict[str, tuple[str, dict]]:
+    """Check every law of ``config`` in this process, before any work: its spec parsed, its
+    argument and options checked by its factory (:func:`guidance.registry.validate_law`:
+    built once, or its ``validate`` hook), and its identity taken.
+
+    Returns
+    -------
+    dict
+        Law spec -> ``(law key, identity)``: the key, ``LABEL#FINGERPRINT`` (the label of
+        the tables and the first 16 hex digits of the SHA-256 of
+        :func:`guidance.registry.law_identity`), names the law's tasks; the identity is
+        that of :func:`~guidance.registry.law_identity`.
+
+    Raises
+    ------
+    ValueError
+        A law that cannot be built (the message names it and the bad argument or option).
+    """
+    from guidance.flight import make_vec
+    from guidance.registry import (
+        LawContext,
+        import_law_modules,
+        law_identity,
+        parse_law_spec,
+        validate_law,
+    )
+
+    import_law_modules(config.imports)
+    venv = make_vec(config.env_id, 1, {**config.env_kwargs, "uncertainty": config.uncertainty})
+    scenario = venv.unwrapped.scenario
+    venv.close()
+    out = {}
+    for text in config.laws:
+        spec = parse_law_spec(text)
+        ctx = LawContext(env_id=config.env_id, env_kwargs=dict(config.env_kwargs),
+                         scenario=scenario, nominal_optimum=_no_optimum_here)
+        try:
+            validate_law(spec, ctx)
+        except _NeedsTheOptimum:  # built from the per-case optimum: checked in the workers
+            pass
+        ident = law_identity(spec)
+        out[text] = (f"{spec.label()}#{identity_fingerprint(ident)}", ident)
+    return out
+
+
+class _NeedsTheOptimum(Exception):
+    """A law asked for the per-case optimum while it was being checked (not computed there)."""
+
+
+def _no_optimum_here():
+    raise _NeedsTheOptimum
+
+
+def campaign_tasks(config: CampaignConfig, law_keys: dict[str, tuple[str, dict]]
+                   ) -> tuple[list[Task], dict[str, int]]:
+    """The campaign's tasks and the number of cases each task set covers.
+
+    Keys: ``(reference_v2, seed, k)`` for chunk k of the reference, and
+    ``(LAW_KEY@xSCALE/nCASES, seed, k)`` for chunk k of a law flown at an error scale on its
+    first CASES cases (:attr:`CampaignConfig.cases` at scale 1, :attr:`CampaignConfig.curve_n`
+    at the curve's other scales); ``LAW_KEY`` from :func:`check_laws`, ``SCALE`` by
+    :func:`scale_text`.
+
+    Returns
+    -------
+    tasks : list of Task
+    n_cases : dict
+        Key problem -> the cases 0..n-1 its chunks cover (:meth:`CampaignConfig.chunks`).
+    """
+    model_dict = config.uncertainty.as_dict()
+    n_cases = {_REF_TASK: config.cases}
+    tasks = []
+    for k, (a, n) in enumerate(config.chunks(config.cases)):
+        tasks.append(Task(TaskKey(_REF_TASK, config.seed, k), reference_chunk,
+                          (config.env_id, config.env_kwargs, model_dict, a, n, config.seed)))
+    # every law at scale 1 on all cases (the table); the curve's other scales on curve_n cases
+    for text in config.laws:
+        key, ident = law_keys[text]
+        files = {k: v for k, v in ident.items() if k != "spec"}
+        for scale in sorted({1.0, *config.scales}):
+            problem = _flight_problem(config, key, scale)
+            n_cases[problem] = config.cases if scale == 1.0 else config.curve_n
+            for k, (a, n) in enumerate(config.chunks(n_cases[problem])):
+                tasks.append(Task(TaskKey(problem, config.seed, k), fly_chunk,
+                                  (text, config.env_id, config.env_kwargs, model_dict, scale,
+                                   a, n, config.seed, tuple(config.imports), files)))
+    return tasks, n_cases
+
+
+def _flight_problem(config: CampaignConfig, law_key: str, scale: float) -> str:
+    n = config.cases if scale == 1.0 else config.curve_n
+    return f"{law_key}@x{scale_text(scale)}/n{n}"
+
+
+def campaign_schema(config: CampaignConfig, n_cases: dict[str, int]):
+    """What every stored result of the campaign must hold (``schema`` of its
+    :class:`~optimizers.common.store.ResultStore`): the fields of a flight or a reference
+    chunk, per-case lists of one length, and exactly the cases its key names (chunk
+    ``k`` of cases 0..n-1: ``range(a, a + m)`` for ``(a, m) = config.chunks(n)[k]``), so a
+    chunk stored under another chunk's key, or cut short, is damaged and flown again.
+
+    ``n_cases``: key problem -> cases its chunks cover (:func:`campaign_tasks`).
+    """
+    def expected(key: TaskKey) -> dict[str, Any]:
+        a, m = config.chunks(n_cases[key.problem])[key.index]
+        return {"case": list(range(a, a + m))}
+
+    flight = ResultSchema(required=_FLIGHT_FIELDS, same_length=("case", *_CASE_KEYS),
+                          expected=expected)
+    reference = ResultSchema(required=_REF_FIELDS, same_length=_REF_FIELDS, expected=expected)
+
+    def schema(key: TaskKey, value: Any) -> None:
+        (reference if key.problem == _REF_TASK else flight)(key, value)
+
+    return schema
 
 
 # -------------------------------------------------------------------------------------------
@@ -332,11 +585,13 @@ def _fmt(v) -> str:
 
 def campaign_summary(config: CampaignConfig, cases: dict[str, dict[str, np.ndarray]],
                      reference: dict[str, np.ndarray], curve: dict, wall_s: float,
-                     has_target: bool, reference_info: dict) -> dict[str, Any]:
+                     has_target: bool, reference_info: dict,
+                     law_identity: dict[str, dict] | None = None) -> dict[str, Any]:
     """The campaign's JSON contract (``schema`` :data:`SCHEMA_VERSION`)::
 
         {"schema": 1, "env": ID, "uncertainty": NAME, "uncertainty_model": {...σ...},
-         "cases": N, "seed": S, "env_kwargs": {...},
+         "uncertainty_model_version": V, "cases": N, "seed": S, "env_kwargs": {...},
+         "law_identity": {NAME: {"spec", "fingerprint", ...}},
          "laws": {NAME: {"success_rate", "success_ci95": [lo, hi],
                          "touchdown_speed_p50_m_s", "touchdown_speed_p99_m_s",
                          "touchdown_speed_max_m_s", "miss_p50_m", "miss_p95_m", "miss_p99_m",
@@ -347,14 +602,22 @@ def campaign_summary(config: CampaignConfig, cases: dict[str, dict[str, np.ndarr
          "robustness_curve": {NAME: [{"scale", "success_rate", "success_ci95", "cases"}]},
          "wall_s": seconds}
 
+    ``uncertainty_model_version`` is :data:`lunar_env.uncertainty.MODEL_VERSION` of the
+    model the cases were flown under. ``law_identity[NAME]`` says which law NAME is: its full
+    spec (``spec``: a run's path in full, options sorted), the fingerprint that names its
+    tasks in the store (``fingerprint``, 16 hex digits), and what its factory declares of its
+    files (a learned law: ``model_sha256``, ``vecnormalize_sha256``, ``obs_features``).
+
     Undefined values (no case, or an infinite percentile) are null.
     """
     laws = {name: summarise_law(rows, reference, has_target) for name, rows in cases.items()}
     ref_fuel = np.asarray(reference["omniscient_fuel_kg"], dtype=np.float64)
     return {
         "schema": SCHEMA_VERSION, "env": config.env_id, "uncertainty": config.uncertainty.name,
-        "uncertainty_model": config.uncertainty.as_dict(), "cases": int(config.cases),
-        "seed": int(config.seed), "env_kwargs": config.env_kwargs, "laws": laws,
+        "uncertainty_model": config.uncertainty.as_dict(),
+        "uncertainty_model_version": MODEL_VERSION, "cases": int(config.cases),
+        "seed": int(config.seed), "env_kwargs": config.env_kwargs,
+        "law_identity": dict(law_identity or {}), "laws": laws,
         "reference": {**reference_info, "converged": int(np.isfinite(ref_fuel).sum()),
                       "converged_by": dict(sorted(Counter(
                           m for m in reference["omniscient_solver"] if m).items())),
@@ -382,11 +645,18 @@ def _json_safe(o):
 
 
 def run_campaign(config: CampaignConfig, out_dir: str | Path, *, workers: int = 1,
-                 address: str | None = None, progress: bool = True, plots: bool = True,
-                 json_file: str | Path | None = None, max_tasks: int | None = None
-                 ) -> CampaignResult:
+                 address: str | None = None, executor: Executor | None = None,
+                 progress: bool = True, plots: bool = True,
+                 json_file: str | Path | None = None, max_tasks: int | None = None,
+                 wait: bool = False) -> CampaignResult:
     """Run (or resume) a campaign; writes ``campaign.json``, ``cases.csv`` and the plots into
     ``out_dir`` (and the JSON also to ``json_file``).
+
+    Before any work, every law is built once in this process (:func:`check_laws`) and the env
+    under every error scale (:func:`check_scales`). The directory is written by one process
+    at a time: its :class:`~optimizers.common.lock.DirectoryLock` is held for the whole run.
+    Every stored result is read back verified (:func:`campaign_schema`); one that fails is
+    moved aside and flown again.
 
     Parameters
     ----------
@@ -397,46 +667,66 @@ def run_campaign(config: CampaignConfig, out_dir: str | Path, *, workers: int = 
         Local processes (0: this process); ignored when ``address`` selects Ray.
     address : str, optional
         Ray cluster (``"local"``, ``"auto"``, ``host:port``).
+    executor : Executor, optional
+        Run the tasks here instead (neither closed nor stopped here; ``workers`` and
+        ``address`` are then ignored).
     max_tasks : int, optional
         Submit at most this many missing tasks, then stop (tests of the resume).
+    wait : bool
+        Wait for another process writing ``out_dir`` to finish (default: refuse at once).
 
     Raises
     ------
+    ValueError
+        A law or an error scale refused by the checks; a store of other settings in
+        ``out_dir`` (:class:`~optimizers.common.store.StoreIdentityError`).
+    ~optimizers.common.lock.DirectoryBusy
+        Another process writes ``out_dir`` (and ``wait`` is False).
     RuntimeError
         ``max_tasks`` stopped the campaign before every task finished (the finished ones are
         stored).
     """
-    from guidance.registry import parse_law_spec
-
     t0 = time.perf_counter()
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    store = ResultStore(out / "store", identity=config.identity(), fmt="json")
-    model_dict = config.uncertainty.as_dict()
-    tasks = []
-    for k, (a, n) in enumerate(config.chunks(config.cases)):
-        tasks.append(Task(TaskKey(_REF_TASK, config.seed, k), reference_chunk,
-                          (config.env_id, config.env_kwargs, model_dict, a, n, config.seed)))
-    curve_n = min(config.curve_cases, config.cases)
-    # every law at scale 1 on all cases (the table); the curve's other scales on curve_n cases
-    scales = sorted({1.0, *map(float, config.scales)})
-    for text in config.laws:
-        label = parse_law_spec(text).label()
-        for scale in scales:
-            n_cases = config.cases if scale == 1.0 else curve_n
-            for k, (a, n) in enumerate(config.chunks(n_cases)):
-                tasks.append(Task(TaskKey(f"{label}@x{scale:g}", config.seed, k), fly_chunk,
-                                  (text, config.env_id, config.env_kwargs, model_dict, scale,
-                                   a, n, config.seed, tuple(config.imports))))
-    executor = get_executor(address, workers)
-    try:
-        results, _ = run_tasks(tasks, executor, store, progress="campaign" if progress else False,
-                               max_tasks=max_tasks)
-    finally:
-        executor.close()
-    if len(results) < len(tasks):
-        raise RuntimeError(f"campaign stopped after {len(results)} of {len(tasks)} tasks "
-                           f"(max_tasks={max_tasks}); run it again to resume")
+    with DirectoryLock(out, wait=wait, what="campaign"):
+        law_keys = check_laws(config)
+        check_scales(config)
+        tasks, n_cases = campaign_tasks(config, law_keys)
+        store = ResultStore(out / "store", identity=config.identity(), fmt="json",
+                            schema=campaign_schema(config, n_cases))
+        own = executor is None
+        ex = get_executor(address, workers) if own else executor
+        try:
+            results, _ = run_tasks(tasks, ex, store, progress="campaign" if progress else False,
+                                   max_tasks=max_tasks)
+        except BaseException:
+            if own:  # an interrupt or a failed task: stop the workers now, keep what is stored
+                ex.terminate()
+            raise
+        finally:
+            if own:
+                ex.close()
+        if len(results) < len(tasks):
+            raise RuntimeError(f"campaign stopped after {len(results)} of {len(tasks)} tasks "
+                               f"(max_tasks={max_tasks}); run it again to resume")
+        result, has_target = _gather(config, law_keys, tasks, results, t0)
+        text = json.dumps(result.summary, indent=1).encode()
+        atomic_write_bytes(out / "campaign.json", text)
+        if json_file:
+            atomic_write_bytes(json_file, text)
+        atomic_write_bytes(out / "cases.csv", result.rows_csv().encode())
+        if plots:
+            from guidance.campaign.plots import plot_campaign
+
+            plot_campaign(result, out, has_target)
+    return result
+
+
+def _gather(config: CampaignConfig, law_keys: dict[str, tuple[str, dict]], tasks: list[Task],
+            results: dict, t0: float) -> tuple[CampaignResult, bool]:
+    """The finished campaign from its tasks' results, and whether its env has a target."""
+    from guidance.registry import parse_law_spec
+
     by_key = {t.key: results[t.key] for t in tasks}
 
     def gather(problem: str, keys: tuple[str, ...], n_cases: int) -> dict[str, np.ndarray]:
@@ -450,17 +740,20 @@ def run_campaign(config: CampaignConfig, out_dir: str | Path, *, workers: int = 
     reference["omniscient_solver"] = [m for p in ref_parts for m in p["omniscient_solver"]]
     cases: dict[str, dict[str, np.ndarray]] = {}
     curve: dict[str, list[tuple[float, int, int]]] = {}
+    identities: dict[str, dict] = {}
     for text in config.laws:
         label = parse_law_spec(text).label()
-        rows, parts = gather(f"{label}@x1", _CASE_KEYS, config.cases)
+        key, ident = law_keys[text]
+        identities[label] = {**ident, "fingerprint": key.rsplit("#", 1)[1]}
+        rows, parts = gather(_flight_problem(config, key, 1.0), _CASE_KEYS, config.cases)
         n_dec = sum(p["n_decisions"] for p in parts)
         rows["us_per_decision"] = 1e6 * sum(p["policy_wall_s"] for p in parts) / max(n_dec, 1)
         cases[label] = rows
         pts = []
-        for scale in sorted(map(float, config.scales)):
-            r, _ = gather(f"{label}@x{scale:g}", ("success",),
-                          config.cases if scale == 1.0 else curve_n)
-            ok = r["success"][:curve_n]
+        for scale in sorted(config.scales):
+            r, _ = gather(_flight_problem(config, key, scale), ("success",),
+                          config.cases if scale == 1.0 else config.curve_n)
+            ok = r["success"][:config.curve_n]
             pts.append((scale, int(ok.sum()), int(len(ok))))
         curve[label] = pts
     from guidance.flight import make_vec
@@ -475,15 +768,5 @@ def run_campaign(config: CampaignConfig, out_dir: str | Path, *, workers: int = 
                 "wall_s": float(sum(p.get("wall_s", 0.0) for p in ref_parts))}
     wall = time.perf_counter() - t0
     summary = _json_safe(campaign_summary(config, cases, reference, curve, wall, has_target,
-                                          ref_info))
-    result = CampaignResult(config, cases, reference, curve, summary, wall)
-    text = json.dumps(summary, indent=1).encode()
-    atomic_write_bytes(out / "campaign.json", text)
-    if json_file:
-        atomic_write_bytes(json_file, text)
-    atomic_write_bytes(out / "cases.csv", result.rows_csv().encode())
-    if plots:
-        from guidance.campaign.plots import plot_campaign
-
-        plot_campaign(result, out, has_target)
-    return result
+                                          ref_info, identities))
+    return CampaignResult(config, cases, reference, curve, summary, wall), has_target

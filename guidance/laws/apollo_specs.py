@@ -64,7 +64,9 @@ def _augmented(spec, default_k_r: float) -> GuidanceLaw:
             aim_above_m=spec.option("aim", float, 0.0),
             name=spec.text or spec.name)
     except ValueError as exc:
-        raise ValueError(f"law {spec.text or spec.name!r}: {exc}") from None
+        msg = str(exc)  # the spec's own checks name the law already
+        raise ValueError(msg if msg.startswith("law ") else
+                         f"law {spec.text or spec.name!r}: {msg}") from None
 
 
 def apollo_from_spec(spec, context) -> GuidanceLaw:

@@ -25,6 +25,15 @@ def open_loop_from_spec(spec, context) -> GuidanceLaw:
     return law
 
 
+def _check_open_loop(spec, context) -> None:
+    """What :func:`open_loop_from_spec` checks before it asks for the per-case optimum."""
+    spec.require_known_options(())
+    require_no_argument(spec)
+
+
+open_loop_from_spec.validate = _check_open_loop
+
+
 def feedback_from_spec(spec, context) -> GuidanceLaw:
     """``feedback``: the family's closed-loop expert (planar: Pontryagin re-planning; pinpoint:
     compiled Pontryagin re-planning) on the navigation solution and the nominal model.

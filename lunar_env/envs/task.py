@@ -245,6 +245,25 @@ class LandingTask(metaclass=_FrozenAfterInit):
         self.velocity_ref_m_s = s.velocity_m_s
         self.propellant_ref_kg = scenario.vehicle.mass_kg - scenario.vehicle.dry_mass_kg
         self.prop_nominal_nd = float(s.mass_nd(scenario.vehicle.mass_kg)) - self.dry_mass_nd
+        self._check_mass_error()
+
+    def _check_mass_error(self) -> None:
+        """Refuse an uncertainty model whose wet-mass error can start a lander at or below its
+        dry mass: the draws are truncated at ±TRUNCATION_SIGMA σ, so the worst is known when
+        the task is built, and a campaign would otherwise fail at the reset of that case."""
+        from ..uncertainty import TRUNCATION_SIGMA
+
+        sigma = float(self.uncertainty.mass_kg)
+        vehicle = self.scenario.vehicle
+        lightest = vehicle.mass_kg + min(0.0, float(self.scenario.dispersion.mass_kg[0]))
+        margin = lightest - vehicle.dry_mass_kg
+        if TRUNCATION_SIGMA * sigma >= margin:
+            raise ValueError(
+                f"UncertaintyModel.mass_kg = {sigma:g} kg (1σ) is not allowed for "
+                f"{self.scenario.name}: at its ±{TRUNCATION_SIGMA:g}σ truncation it removes "
+                f"{TRUNCATION_SIGMA * sigma:g} kg from the lightest start, {lightest:g} kg, whose "
+                f"propellant above the dry mass is {margin:g} kg; allowed: mass_kg < "
+                f"{margin / TRUNCATION_SIGMA:.4g} kg")
 
     def __setattr__(self, name: str, value: Any) -> None:
         if self.__dict__.get("_frozen", False):

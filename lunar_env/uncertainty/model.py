@@ -211,9 +211,12 @@ class UncertaintyModel:
                                                          accelerometer's
     ======================================  ===========  =======================================
 
-    A model within the limits may still be refused at reset by a task for a draw that puts
-    its start at or below the terminal radius or the dry mass (the vehicle and the start are
-    the scenario's, not the model's).
+    A model within the limits may still be refused by a task (the vehicle and the start are
+    the scenario's, not the model's): when the task is built, a ``mass_kg`` whose truncated
+    draw (±:data:`~lunar_env.uncertainty.TRUNCATION_SIGMA` σ) reaches the dry mass from the
+    lightest start; at reset, a draw that puts a start at or below the terminal radius.
+
+    :data:`MODEL_VERSION` numbers what the fields mean and how they are drawn and applied.
 
     Raises
     ------

@@ -30,8 +30,8 @@ from typing import Any
 
 __all__ = ["USER_INPUT_ERRORS", "user_input_errors", "error_message", "check_env",
            "clean_interrupts", "Terminated", "INTERRUPTED_MESSAGE", "exit_status",
-           "count_type", "seed_type", "output_file_type", "ray_address_type", "MAX_SEED",
-           "MAX_COUNT"]
+           "count_type", "seed_type", "real_type", "output_file_type", "output_dir_type",
+           "input_path_type", "ray_address_type", "MAX_SEED", "MAX_COUNT"]
 
 #: the line an interrupted command prints (on stderr) before it exits
 INTERRUPTED_MESSAGE = "interrupted; run the same command to resume"
@@ -242,6 +242,66 @@ def seed_type(text: str) -> int:
 seed_type.__name__ = "seed"
 
 
+def real_type(minimum: float | None = None, maximum: float | None = None, *,
+              positive: bool = False) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number in [``minimum``, ``maximum``] (either end open
+    when None); ``positive=True`` also refuses 0.
+
+    >>> real_type(0.0)("0.25")
+    0.25
+    """
+    import math
+
+    low = "> 0" if positive else (f">= {minimum:g}" if minimum is not None else None)
+    allowed = " and ".join(p for p in ("finite", low, None if maximum is None
+                                       else f"<= {maximum:g}") if p)
+
+    def parse(text: str) -> float:
+        try:
+            x = float(text)
+        except (TypeError, ValueError):
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number; allowed: {allowed}"
+                                             ) from None
+        if (not math.isfinite(x) or (minimum is not None and x < minimum)
+                or (maximum is not None and x > maximum) or (positive and x <= 0.0)):
+            raise argparse.ArgumentTypeError(f"{text} is out of range; allowed: {allowed}")
+        return x
+
+    parse.__name__ = "number"
+    return parse
+
+
+def output_dir_type(text: str) -> str:
+    """An argparse ``type``: a directory this command can write (an existing one, or one it
+    can create with its parents).
+
+    Refused at once, before any work: a path naming a file, a path under a file, a folder
+    that cannot be written to."""
+    import os
+
+    if not text:
+        raise argparse.ArgumentTypeError("an empty path; give a directory")
+    path = os.path.abspath(text)
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise argparse.ArgumentTypeError(f"{text} is a file, not a directory")
+    if os.path.isdir(path):
+        if not os.access(path, os.W_OK | os.X_OK):
+            raise argparse.ArgumentTypeError(f"{text} is a directory that cannot be written")
+        return text
+    parent = os.path.dirname(path)
+    while not os.path.exists(parent):
+        parent = os.path.dirname(parent)
+    if not os.path.isdir(parent):
+        raise argparse.ArgumentTypeError(f"{text} cannot be created: {parent} is a file, not a "
+                                         "directory")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{text} cannot be created: {parent} is not writable")
+    return text
+
+
+output_dir_type.__name__ = "directory"
+
+
 def output_file_type(text: str) -> str:
     """An argparse ``type``: a file this command can write (created with its folders).
 
@@ -268,6 +328,20 @@ def output_file_type(text: str) -> str:
 
 
 output_file_type.__name__ = "file"
+
+
+def input_path_type(text: str) -> str:
+    """An argparse ``type``: a file or directory that exists (a model, a run, a dataset)."""
+    import os
+
+    if not text:
+        raise argparse.ArgumentTypeError("an empty path; give an existing file or directory")
+    if not os.path.exists(text):
+        raise argparse.ArgumentTypeError(f"{text} does not exist")
+    return text
+
+
+input_path_type.__name__ = "path"
 
 
 def ray_address_type(text: str) -> str:

@@ -609,3 +609,28 @@ def test_plant_scaling_by_name_equals_the_packed_indices(env_id):
         np.testing.assert_array_equal(core._batch._p[i], by_index)
     assert (e.thrust_scale != 1.0).all() and (e.isp_scale != 1.0).all()
     env.close()
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_a_mass_error_that_can_reach_the_dry_mass_is_refused_when_the_env_is_made(env_id):
+    """Within its own limit (< 1000 kg), a wet-mass σ whose truncated draw takes the lightest
+    start to the dry mass is refused by the task when it is built, naming the largest σ
+    allowed, not at the reset of the case that draws it; ``stress`` (18 kg) is far from it."""
+    from lunar_env.uncertainty import TRUNCATION_SIGMA
+
+    gym.make(env_id, uncertainty="stress").close()
+    with pytest.raises(ValueError, match=r"mass_kg = 200 kg \(1σ\) is not allowed .*allowed: "
+                                         r"mass_kg < \d"):
+        gym.make(env_id, uncertainty={"base": "standard", "mass_kg": 200.0})
+    env = gym.make(env_id)
+    sc = env.unwrapped.scenario
+    env.close()
+    margin = sc.vehicle.mass_kg + min(0.0, sc.dispersion.mass_kg[0]) - sc.vehicle.dry_mass_kg
+    gym.make(env_id, uncertainty={"mass_kg": 0.99 * margin / TRUNCATION_SIGMA}).close()
+    with pytest.raises(ValueError, match="mass_kg"):
+        gym.make(env_id, uncertainty={"mass_kg": 1.01 * margin / TRUNCATION_SIGMA})
+
+
+def test_the_model_version_is_exported():
+    assert isinstance(unc.MODEL_VERSION, int) and unc.MODEL_VERSION >= 1
+    assert "MODEL_VERSION" in unc.__all__

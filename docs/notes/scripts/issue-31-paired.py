@@ -87,12 +87,21 @@ def _print_engine_bins(success: dict[str, dict[int, bool]], thrust: dict[int, fl
 
 def _curve_success(out_dir: Path, laws: list[str], scale: float) -> dict[str, dict[int, bool]]:
     """Per law, case -> landed, for the curve's flights at ``scale`` in ``out_dir/store``."""
-    seed = json.loads((out_dir / "campaign.json").read_text())["seed"]
+    from guidance.campaign.run import scale_text
+
+    summary = json.loads((out_dir / "campaign.json").read_text())
+    seed = summary["seed"]
     store = ResultStore.existing(out_dir / "store")
     success: dict[str, dict[int, bool]] = {}
     for law in laws:
+        # the law's tasks: its label and fingerprint, the scale, the cases flown at it
+        fingerprint = summary.get("law_identity", {}).get(law, {}).get("fingerprint", "")
+        n = summary["cases"] if scale == 1.0 else next(
+            (p["cases"] for p in summary["robustness_curve"].get(law, ())
+             if p["scale"] == scale), 0)
+        problem = f"{law}#{fingerprint}@x{scale_text(scale)}/n{n}"
         k, rows = 0, {}
-        while (key := TaskKey(f"{law}@x{scale:g}", seed, k)) in store:
+        while (key := TaskKey(problem, seed, k)) in store:
             part = store.get(key)
             cases, landed = part["case"], part["success"]
             rows.update({int(c): bool(s) for c, s in zip(cases, landed, strict=True)})
