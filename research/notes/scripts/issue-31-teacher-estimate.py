@@ -1,7 +1,7 @@
 """Issue 31, seventeenth session: the window-law teacher's thrust estimate in DAgger roll-outs
 flown by a student, against an estimator fed the controls actually flown.
 
-    python docs/notes/scripts/issue-31-teacher-estimate.py RUN_DIR [--cases 12] [--unfixed]
+    python research/notes/scripts/issue-31-teacher-estimate.py RUN_DIR [--cases 12] [--unfixed]
 
 Flies cases 0..N-1 of ``LunarPinpointLanding-v2`` (2 s, throttled, ``standard``) with the
 student of the DAgger run ``RUN_DIR`` throughout, the run's teacher law labelling alongside

@@ -1,7 +1,7 @@
 """Issue 31: the widest band of gate heights a pinpoint lander can cross below 5 m/s, by optimal
 control, and the success it allows under an unobservable altitude error.
 
-``python docs/notes/scripts/issue-31-terminal-window.py [--mass-kg 321] [--max-steps 6]``
+``python research/notes/scripts/issue-31-terminal-window.py [--mass-kg 321] [--max-steps 6]``
 
 Why. Under ``standard`` the navigated altitude at ``LunarPinpointLanding-v2``'s gate (2 km up)
 carries a bias of 100 m × the radar weight 0.05 × 2000/3000 = 3.33 m (1σ) that no sensor of the

@@ -6,7 +6,7 @@ and compares each lander's final estimate with its true scale: the thrust error 
 navigated over the true mass at the last decision (the model's acceleration uses the navigated
 mass). Prints the error percentiles and success by the engine's true scale.
 
-    python docs/notes/scripts/issue-31-thrust-estimate.py [N] [R]
+    python research/notes/scripts/issue-31-thrust-estimate.py [N] [R]
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Issue 31: which error of `standard` costs a pinpoint law its landings: leave one out.
 
-``python docs/notes/scripts/issue-31-leave-one-out.py LAW... [--cases N] [--env-kwargs JSON]
+``python research/notes/scripts/issue-31-leave-one-out.py LAW... [--cases N] [--env-kwargs JSON]
 [--json FILE]``
 
 Flies each law (a campaign spec: ``ppo:RUN``, ``apollo``, ...) on the first N cases (seed 0)

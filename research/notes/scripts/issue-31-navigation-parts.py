@@ -1,6 +1,6 @@
 """Issue 31: which part of the `standard` navigation errors breaks the pinpoint agents.
 
-``python docs/notes/scripts/issue-31-navigation-parts.py OUT_DIR LAW... [--cases N]``
+``python research/notes/scripts/issue-31-navigation-parts.py OUT_DIR LAW... [--cases N]``
 
 Flies the laws (campaign specs, e.g. ``ppo:runs/pin/nominal``) on ``LunarPinpointLanding-v2``
 under `standard` with every error group zeroed except one part of the navigation model: the

@@ -1,6 +1,6 @@
 """Issue 31: how far below full thrust a throttled pinpoint law flies (its thrust margin).
 
-``python docs/notes/scripts/issue-31-throttle-use.py LAW... [--cases N] [--uncertainty SET]``
+``python research/notes/scripts/issue-31-throttle-use.py LAW... [--cases N] [--uncertainty SET]``
 
 Flies each law (a campaign spec: ``ppo:RUN``, ``apollo``, ...) on the first N cases (seed 0)
 of ``LunarPinpointLanding-v2`` with ``{"dt_s": 2.0, "throttle_channel": true}``, records

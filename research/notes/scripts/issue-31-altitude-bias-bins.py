@@ -1,7 +1,7 @@
 """Issue 31: a pinpoint campaign's success by the sign and size of each case's navigation
 altitude bias (or its downrange or crossrange position bias).
 
-``python docs/notes/scripts/issue-31-altitude-bias-bins.py CAMPAIGN_DIR [--at-gate]
+``python research/notes/scripts/issue-31-altitude-bias-bins.py CAMPAIGN_DIR [--at-gate]
 [--axis up|downrange|crossrange]``
 
 ``CAMPAIGN_DIR`` is a campaign's ``--out`` (``campaign.json`` and ``cases.csv``). Each case's

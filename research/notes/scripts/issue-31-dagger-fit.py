@@ -6,7 +6,7 @@ its own roll-outs, labelled by the teacher) against that of the policy of iterat
 was trained on them. A large first and small second is the distribution shift DAgger closes
 iteration by iteration; a large second would be a teacher the network cannot represent.
 
-    python docs/notes/scripts/issue-31-dagger-fit.py runs/imitation/<dagger run dir>
+    python research/notes/scripts/issue-31-dagger-fit.py runs/imitation/<dagger run dir>
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Issue 31: a campaign's robustness curves with the seeds of one configuration drawn together.
 
-``python docs/notes/scripts/issue-31-grouped-curve.py JSON[,JSON...] OUT_PNG GROUP=PREFIX ...``
+``python research/notes/scripts/issue-31-grouped-curve.py JSON[,JSON...] OUT_PNG GROUP=PREFIX ...``
 
 Each ``GROUP=PREFIX`` draws, in one colour and under the label ``GROUP``, every law of the
 campaign JSON (``python -m agents.campaign --json``) whose name starts with ``PREFIX``; the

@@ -1,6 +1,6 @@
 #!/bin/bash
 # Issue 31: each error group of 'standard' alone, 100 cases, for the laws given as arguments
-# run from the repository root: bash docs/notes/scripts/issue-31-error-groups.sh OUT_DIR LAW...
+# run from the repository root: bash research/notes/scripts/issue-31-error-groups.sh OUT_DIR LAW...
 set -eu
 Z3='[0,0,0]'
 NAV="\"nav_position_bias_m\":$Z3,\"nav_velocity_bias_m_s\":$Z3,\"nav_position_noise_m\":$Z3,\"nav_velocity_noise_m_s\":$Z3"

@@ -1,6 +1,6 @@
 """Issue 31: two laws paired on a campaign's cases, and each law's landings by engine error.
 
-``python docs/notes/scripts/issue-31-paired.py CASES_CSV [--pairs 'A|B' ...] [--laws LAW ...]
+``python research/notes/scripts/issue-31-paired.py CASES_CSV [--pairs 'A|B' ...] [--laws LAW ...]
 [--scale S]``
 
 Reads a campaign's ``cases.csv`` (``python -m agents.campaign ... --out DIR`` writes

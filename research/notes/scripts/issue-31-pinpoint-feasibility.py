@@ -45,8 +45,8 @@ must land them, and its direct optimum's fuel must match the omniscient one.
 
 One process, one core (no workers). Run from the repository root::
 
-    .venv/bin/python docs/notes/scripts/issue-31-pinpoint-feasibility.py \
-        --json docs/notes/issue-31-pinpoint-feasibility.json
+    .venv/bin/python research/notes/scripts/issue-31-pinpoint-feasibility.py \
+        --json research/notes/issue-31-pinpoint-feasibility.json
 """
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ ENV_KWARGS: dict[str, Any] = {"dt_s": 2.0}
 DT_S = 2.0
 MAX_STEPS = 620  # > the 1200 s time limit at 2 s
 CASES_CSV = Path("runs/camp_pin_ft/cases.csv")
-DEFAULT_JSON = Path("docs/notes/issue-31-pinpoint-feasibility.json")
+DEFAULT_JSON = Path("research/notes/issue-31-pinpoint-feasibility.json")
 #: converged cases with plants near the NaN ones (thrust scale 0.945-1.066): the controls
 DEFAULT_CONTROLS = (0, 1, 2)
 

@@ -2,7 +2,7 @@
 and prints, per case, where the extremal the law flew last converged and how long it then flew
 a stale one.
 
-``python docs/notes/scripts/issue-31-lost-extremals.py CAMPAIGN_DIR [--cases K ...]
+``python research/notes/scripts/issue-31-lost-extremals.py CAMPAIGN_DIR [--cases K ...]
 [--law SPEC] [--min-speed V]``
 
 ``CAMPAIGN_DIR`` is a campaign's ``--out`` (``campaign.json``, ``cases.csv``) that flew

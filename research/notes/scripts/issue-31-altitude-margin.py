@@ -1,11 +1,11 @@
 """Issue 31: does an altitude margin save the pinpoint agents from the navigation altitude bias?
 
-``python docs/notes/scripts/issue-31-altitude-margin.py RUN [--margins 0 150 250 350]
+``python research/notes/scripts/issue-31-altitude-margin.py RUN [--margins 0 150 250 350]
 [--cases 400] [--uncertainty JSON_OR_NAME] [--json FILE]``
 
 A trained pinpoint policy (``RUN``) lands 89-100 % of the cases whose navigation believes
 it *lower* than it is, and 0 % of those that believe it higher by more than ~20 m
-(``docs/notes/issue-31.md``, "The altitude bias, by sign"). The wrapper law here shifts the
+(``research/notes/issue-31.md``, "The altitude bias, by sign"). The wrapper law here shifts the
 navigated altitude the policy sees down by a margin Δ (and the target's radial offset up by
 the same), scaled as the navigation error itself shrinks
 (:func:`lunar_env.uncertainty.radar_weight`: 1 above the radar lock altitude, then

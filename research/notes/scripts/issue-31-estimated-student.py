@@ -1,7 +1,7 @@
 """Issue 31, seventeenth session: a DAgger student whose throttle is divided by a
 navigation-only thrust estimate, as its teacher divides its own (not kept).
 
-    python docs/notes/scripts/issue-31-estimated-student.py --env LunarPinpointLanding-v2 \
+    python research/notes/scripts/issue-31-estimated-student.py --env LunarPinpointLanding-v2 \
         --env-kwargs '{"dt_s": 2.0, "throttle_channel": true}' --uncertainty standard \
         --cases 100 --chunk 25 --workers 1 --out runs/camp_est_student \
         --laws dagger:runs/wdg/dagger_s1_x15 dagger-est:runs/wdg/dagger_s1_x15
