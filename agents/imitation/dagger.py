@@ -34,14 +34,23 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     The policy flies the dataset's env with ``hp["env_kwargs"]`` merged over it
     (:func:`agents.imitation.sources.run_env_kwargs`, e.g. an ``uncertainty`` model): the
     roll-outs, the initial BC and the final selection alike. Its env family labels the
-    visited states (settings of ``hp["dagger"]``, e.g. the planar ``teacher``)."""
+    visited states with the teacher ``hp["dagger"]["teacher"]`` (one contract for every
+    family: :mod:`agents.imitation.teachers`; checked before anything is loaded or flown).
+
+    Raises
+    ------
+    ValueError
+        The teacher setting names no teacher.
+    """
     import torch as th
     from stable_baselines3 import PPO
 
     from agents.imitation.sources import load_run_dataset
+    from agents.imitation.teachers import parse_teacher
 
-    ds, env_kwargs = load_run_dataset(run, hp.get("env_kwargs"))
     dg = hp["dagger"]
+    parse_teacher(dg.get("teacher"))
+    ds, env_kwargs = load_run_dataset(run, hp.get("env_kwargs"))
     seed = int(run["seed"])
     th.manual_seed(seed)
     ckdir = run_dir / "checkpoints"

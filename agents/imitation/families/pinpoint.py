@@ -1,6 +1,6 @@
 """The pinpoint family's imitation data: dataset shards from the Pontryagin feedback expert's
-own (noisy) flights, and DAgger roll-outs labelled in flight by the same expert, or by a
-guidance law that sees what the student sees (``dagger.teacher_law``) (what
+own (noisy) flights, and DAgger roll-outs labelled in flight by the same expert or by a
+guidance law (``dagger.teacher``, :mod:`agents.imitation.teachers`) (what
 :meth:`guidance.families.pinpoint.PinpointFamily.dataset_recipe` and
 :meth:`~guidance.families.pinpoint.PinpointFamily.dagger_iteration` answer).
 
@@ -24,23 +24,23 @@ from typing import Any
 
 import numpy as np
 
-from agents.imitation.families import (
-    DaggerRequest,
-    DatasetRecipe,
-    FollowsFlight,
-    ImitationFamily,
-)
+from agents.imitation.families import DaggerRequest, DatasetRecipe, ImitationFamily
 from agents.imitation.flights import collect_samples, make_env
+from agents.imitation.teachers import (
+    TEACHER_KINDS,
+    law_dagger_chunk,
+    law_dagger_rollouts,
+    parse_teacher,
+)
 from guidance.flight import fly
-from guidance.law import GuidanceLaw, Navigation, PrivilegedLaw, Truth, actions_of
+from guidance.law import Navigation, PrivilegedLaw, Truth
 from guidance.laws.pontryagin_pinpoint import PinpointPontryaginExpert
 from lunar_env import get_scenario
-from optimizers.indirect.pinpoint_feedback import STATUS_FALLBACK, STATUS_STALE
 
 __all__ = ["PINPOINT_LABEL_RULE", "PINPOINT_TOLERANCES", "PINPOINT_ACTION_NOISE",
            "OBSERVATION_NAMES", "ExpertFlightTeacher", "pinpoint_expert_flights",
-           "pinpoint_shard", "pinpoint_dataset_recipe", "DaggerRolloutTeacher", "LawRolloutTeacher",
-           "pinpoint_dagger_rollouts", "pinpoint_dagger_iteration"]
+           "pinpoint_shard", "pinpoint_dataset_recipe", "DaggerRolloutTeacher",
+           "expert_dagger_chunk", "pinpoint_dagger_rollouts", "pinpoint_dagger_iteration"]
 
 PINPOINT_LABEL_RULE = ("action_from_angles(mean of the extremal's (alpha*, beta*) over "
                        "[t_k, t_k + dt_s]) at each state visited by the Pontryagin feedback "
@@ -55,10 +55,6 @@ PINPOINT_TOLERANCES = {"radius_m": 500.0, "speed_m_s": 5.0}
 PINPOINT_ACTION_NOISE = 0.02
 OBSERVATION_NAMES = ["altitude/h0", "d_radial/d0", "d_along/d0", "d_cross/d0", "u/(0.1 v0)",
                      "v/v0", "w/(0.1 v0)", "propellant/nominal", "t/time_limit"]
-#: statuses of a decision without a converged solve (a guess, not a label)
-_GUESSES = (STATUS_STALE, STATUS_FALLBACK)
-#: DAgger: the expert flies a mixed episode up to a switch time drawn uniformly in [0, this] (s)
-SWITCH_MAX_S = 540.0
 
 
 # --------------------------------------------------------------------------------- dataset
@@ -244,8 +240,8 @@ def pinpoint_dataset_recipe(scenario, n: int, seed: int, *, n_steps: int, check:
 
 
 class DaggerRolloutTeacher(PrivilegedLaw):
-    """A pinpoint DAgger roll-out: the Pontryagin feedback expert labels every visited *true*
-    state (a privileged teacher), and flies each episode until its switch time; the learner
+    """A pinpoint DAgger roll-out labelled by the Pontryagin feedback expert (the extremal
+    from every visited state), which flies each episode until its switch time; the learner
     flies after it.
 
     Parameters
@@ -255,14 +251,22 @@ class DaggerRolloutTeacher(PrivilegedLaw):
         ``learner(obs (N, n_obs)) -> actions (N, 2)``: the policy being trained.
     switch_s : ndarray, shape (N,)
         Per-case episode time (s) at which the learner takes over (0: the learner throughout).
+    view : str
+        ``"privileged"``: the expert plans from the *true* state; ``"navigated"``: from the
+        navigation solution the student is given (:data:`agents.imitation.teachers.
+        TEACHER_KINDS`).
     """
 
     name = "DAgger roll-out"
 
-    def __init__(self, expert, learner, switch_s: np.ndarray) -> None:
+    def __init__(self, expert, learner, switch_s: np.ndarray,
+                 view: str = "privileged") -> None:
+        if view not in TEACHER_KINDS:
+            raise ValueError(f"view = {view!r} is not allowed; choose one of {TEACHER_KINDS}")
         self.expert = expert
         self.learner = learner
         self.switch_s = np.asarray(switch_s, dtype=np.float64)
+        self.view = view
         self.records: dict[str, list] = {k: [] for k in ("obs", "actions", "phi_rad", "status")}
 
     def reset(self, computer, case_ids: np.ndarray) -> None:
@@ -270,9 +274,10 @@ class DaggerRolloutTeacher(PrivilegedLaw):
         self.expert.reset(computer, case_ids)
 
     def act_privileged(self, nav: Navigation, truth: Truth) -> np.ndarray:
+        state = truth.state_nd if self.view == "privileged" else nav.state_nd
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            ang, lab, m = self.expert.labels(truth.state_nd, truth.t_s, nav.active)
+            ang, lab, m = self.expert.labels(state, truth.t_s, nav.active)
         lab = self.computer.actions_from_controls(np.c_[ang, np.ones(len(ang))])
         st = np.asarray(self.expert.last_status)
         rec = self.records
@@ -284,86 +289,18 @@ class DaggerRolloutTeacher(PrivilegedLaw):
         return np.where((nav.t_s < self.switch_s)[:, None], lab, pol).astype(np.float32)
 
 
-class LawRolloutTeacher(GuidanceLaw):
-    """A pinpoint DAgger roll-out labelled by a guidance law that sees what the student sees
-    (the navigation solution; e.g. the window law ``feedback:thrust_reserve=0.05,...``).
-
-    The teacher flies along with every episode, asked at every decision and, where it follows
-    the flight (:class:`~agents.imitation.families.FollowsFlight`), told the actions flown, so
-    its own memory (a thrust estimate) follows the flight whoever flies it; it flies each episode
-    until its switch time and the learner after it. Its actions are the labels, except where
-    the law reports (a per-row ``last_status``, as the reserve law does) a decision that is a
-    guess, no converged solve ("stale", "fallback"): those are not recorded, as the
-    privileged teacher's are not.
-
-    Parameters
-    ----------
-    teacher : GuidanceLaw
-        Not privileged (:class:`DaggerRolloutTeacher` is the privileged teacher).
-    learner : callable
-        ``learner(obs (N, n_obs)) -> actions (N, n_act)``: the policy being trained.
-    switch_s : ndarray, shape (N,)
-        Per-case episode time (s) at which the learner takes over (0: the learner throughout).
-    """
-
-    name = "DAgger roll-out (same-view law)"
-
-    def __init__(self, teacher: GuidanceLaw, learner, switch_s: np.ndarray) -> None:
-        if isinstance(teacher, PrivilegedLaw):
-            raise ValueError(f"teacher law {teacher.name!r} reads the truth; a same-view "
-                             "teacher must see only the navigation solution")
-        self.teacher = teacher
-        self.learner = learner
-        self.switch_s = np.asarray(switch_s, dtype=np.float64)
-        self.records: dict[str, list] = {k: [] for k in ("obs", "actions", "status")}
-
-    def reset(self, computer, case_ids: np.ndarray) -> None:
-        super().reset(computer, case_ids)
-        self.teacher.reset(computer, case_ids)
-
-    def act(self, nav: Navigation) -> np.ndarray:
-        lab = actions_of(self.teacher.computer, self.teacher.act(nav))
-        status = np.asarray(getattr(self.teacher, "last_status", None) or ["law"] * nav.n,
-                            dtype="<U12")
-        m = np.asarray(nav.active, dtype=bool) & ~np.isin(status, _GUESSES)
-        self.records["obs"].append(np.asarray(nav.obs)[m])
-        self.records["actions"].append(lab[m])
-        self.records["status"].append(status[m])
-        pol = self.learner(nav.obs)
-        flown = np.where((nav.t_s < self.switch_s)[:, None], lab, pol).astype(np.float32)
-        # the teacher's memory must follow what was flown: the window law's thrust estimate,
-        # fed its own controls while the student flew, was 8 % off (RMS over 12 student
-        # flights; 0.4 % fed the flown ones), so its labels planned with the wrong engine
-        if isinstance(self.teacher, FollowsFlight):
-            self.teacher.flown(nav, flown)
-        return flown
-
-
-def _rollout_teacher(job: dict[str, Any], learner, switch: np.ndarray):
-    """The roll-out teacher of a DAgger chunk: the privileged Pontryagin expert, or the law
-    named by ``job["teacher_law"]`` (a law spec, :mod:`guidance.registry`)."""
-    scenario = get_scenario(job["scenario"])
-    spec = job.get("teacher_law")
-    if not spec:
-        return DaggerRolloutTeacher(PinpointPontryaginExpert(scenario), learner, switch)
-    from guidance.registry import LawContext, build_law
-
-    law = build_law(spec, LawContext(env_id=job["env_id"], env_kwargs=dict(job["env_kwargs"]),
-                                     scenario=scenario))
-    return LawRolloutTeacher(law, learner, switch)
-
-
-def dagger_chunk(job: dict[str, Any]) -> dict[str, Any]:
-    """Fly one chunk of DAgger roll-outs on a pinpoint env and label every visited state with
-    the Pontryagin feedback expert or the job's ``teacher_law`` (an executor task; see
-    :func:`pinpoint_dagger_rollouts`)."""
+def expert_dagger_chunk(job: dict[str, Any]) -> dict[str, Any]:
+    """Executor task: one chunk of pinpoint DAgger roll-outs labelled by the Pontryagin
+    feedback expert (``job["teacher"]``: ``privileged`` or ``navigated``;
+    :func:`agents.imitation.teachers.law_dagger_rollouts` makes the jobs)."""
     import torch as th
 
     th.set_num_threads(1)
     learner = job["load_learner"](job["model"], job["env_id"], job["env_kwargs"],
                                   job["obs_features"])
     switch = np.asarray(job["switch_s"], dtype=np.float64)
-    teacher = _rollout_teacher(job, learner, switch)
+    teacher = DaggerRolloutTeacher(PinpointPontryaginExpert(get_scenario(job["scenario"])),
+                                   learner, switch, view=job["teacher"])
     out = fly(job["env_id"], teacher, int(job["n_episodes"]), seed=int(job["seed"]),
               env_kwargs=job["env_kwargs"])
     res = {k: np.concatenate(v) for k, v in teacher.records.items()}
@@ -377,78 +314,33 @@ def pinpoint_dagger_rollouts(model_path, load_learner, env_id: str,
                              env_kwargs: dict[str, Any] | None, n_episodes: int, seed: int,
                              obs_features: list[str] | None, beta: float, n_workers: int = 1,
                              cache_dir=None, progress: bool = True,
-                             teacher_law: str | None = None
+                             teacher: str | None = None
                              ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     """One DAgger iteration's data on a pinpoint env: roll-outs of the policy saved at
     ``model_path`` (loaded in each task by the module-level ``load_learner``, see
-    :class:`optimizers.optimum.DaggerRequest`) from ``n_episodes`` dispersed starts
-    (sub-env i seeded ``seed + i``), every visited state labelled by the Pontryagin feedback
-    expert (:class:`guidance.laws.pontryagin_pinpoint.PinpointPontryaginExpert`, the extremal
-    from that state, on the true state: :class:`DaggerRolloutTeacher`), or, given
-    ``teacher_law`` (a law spec), by that law on the navigation solution the student sees
-    (:class:`LawRolloutTeacher`; e.g. the terminal-window law).
+    :class:`agents.imitation.families.DaggerRequest`) from ``n_episodes`` dispersed starts
+    (sub-env i seeded ``seed + i``), every visited state labelled by ``teacher``
+    (:func:`agents.imitation.teachers.parse_teacher`): the Pontryagin feedback expert
+    (:class:`guidance.laws.pontryagin_pinpoint.PinpointPontryaginExpert`) from the true state
+    (``privileged``, the default) or the navigation solution (``navigated``), or a guidance
+    law flying along on the navigation solution (a law spec, e.g. the terminal-window law).
 
-    Mixing (Ross et al. 2011's β): with probability ``beta`` an episode is flown by the expert
-    up to a switch time drawn uniformly in [0, :data:`SWITCH_MAX_S`] s and by the policy after
-    it, otherwise by the policy throughout; so the labelled states include the policy's own
-    mistakes from every phase of the descent, not only from the start. The success rate
-    reported is that of the policy-only episodes (over all when there is none).
-
-    ``cache_dir``: each chunk's labels are kept there (an :class:`optimizers.common.executor.
-    ResultStore`) and reused on resume.
+    Mixing (Ross et al. 2011's β): with probability ``beta`` an episode is flown by the
+    teacher up to a switch time drawn uniformly in [0, 540] s and by the policy after it,
+    otherwise by the policy throughout (:func:`agents.imitation.teachers.switch_times`).
     Labels whose solve did not converge (status "stale"/"fallback") are not returned.
 
     Raises
     ------
     ValueError
-        ``beta`` outside [0, 1], ``n_episodes`` < 1, or ``teacher_law`` not a law spec.
+        ``beta`` outside [0, 1], ``n_episodes`` < 1, or ``teacher`` not a teacher (before
+        anything is flown).
     """
-    from optimizers.common.executor import LocalExecutor, ResultStore, Task, TaskKey, run_tasks
-
-    if teacher_law:
-        from guidance.registry import parse_law_spec
-
-        parse_law_spec(teacher_law)  # a bad spec fails here, not in every worker
-
-    if not 0.0 <= float(beta) <= 1.0:
-        raise ValueError(f"beta = {beta!r} must be in [0, 1]")
-    if int(n_episodes) < 1:
-        raise ValueError(f"n_episodes = {n_episodes!r} must be >= 1")
-    rng = np.random.default_rng([int(seed), 7])
-    switch = np.where(rng.random(int(n_episodes)) < float(beta),
-                      rng.uniform(0.0, SWITCH_MAX_S, int(n_episodes)), 0.0)
-    n_workers = max(1, min(int(n_workers), int(n_episodes)))
-    bounds = np.linspace(0, int(n_episodes), n_workers + 1).astype(int)
-    env = make_env(env_id, env_kwargs)
-    scenario = env.scenario.name
-    env.close()
-    jobs = [{"model": str(model_path), "load_learner": load_learner, "env_id": env_id,
-             "env_kwargs": dict(env_kwargs or {}), "obs_features": obs_features,
-             "scenario": scenario, "seed": int(seed) + int(lo), "n_episodes": int(hi - lo),
-             "switch_s": switch[lo:hi].tolist(), "teacher_law": teacher_law}
-            for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
-    # each chunk's result is stored as it arrives and read back on resume
-    store = None if cache_dir is None else ResultStore(
-        cache_dir, identity={"model": str(model_path), "env_id": env_id, "seed": int(seed),
-                             "n_episodes": int(n_episodes), "beta": float(beta),
-                             "teacher_law": teacher_law},
-        fmt="pickle")
-    tasks = [Task(TaskKey(f"dagger-{env_id}", int(seed), k), dagger_chunk, (job,))
-             for k, job in enumerate(jobs)]
-    with LocalExecutor(n_workers if n_workers > 1 else 0) as ex:
-        results, _ = run_tasks(tasks, ex, store, progress=(
-            f"DAgger roll-outs + expert labels ({n_workers} proc)" if progress else False))
-    parts = [results[t.key] for t in tasks]
-    lab = {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "actions", "phi_rad",
-                                                               "status") if k in parts[0]}
-    succ = np.concatenate([p["success"] for p in parts])
-    only = np.concatenate([p["learner_only"] for p in parts]).astype(bool)
-    fuel = np.concatenate([p["fuel_kg"] for p in parts])
-    sel = only if only.any() else np.ones(len(succ), dtype=bool)  # all mixed: over all
-    roll = {"rollout_success_rate": float(np.mean(succ[sel])),
-            "rollout_fuel_mean_kg": float(np.mean(fuel[sel])),
-            "rollout_policy_only_episodes": float(sel.sum())}
-    return lab, roll
+    choice = parse_teacher(teacher)
+    return law_dagger_rollouts(law_dagger_chunk if choice.is_law else expert_dagger_chunk,
+                               model_path, load_learner, env_id, env_kwargs, n_episodes, seed,
+                               obs_features, beta, choice, n_workers=n_workers,
+                               cache_dir=cache_dir, progress=progress)
 
 
 def pinpoint_dagger_iteration(scenario, request: DaggerRequest
@@ -462,7 +354,7 @@ def pinpoint_dagger_iteration(scenario, request: DaggerRequest
         int(request.n_episodes), int(request.seed), request.obs_features,
         float(request.settings.get("beta", 0.5)), int(request.n_workers),
         cache_dir=request.store_dir, progress=request.progress,
-        teacher_law=request.settings.get("teacher_law"))
+        teacher=request.settings.get("teacher"))
     roll["rollout_wall_s"] = time.perf_counter() - t0
     roll["label_wall_s"] = 0.0
     return lab, roll

@@ -21,6 +21,12 @@ import numpy as np
 
 from agents.imitation.families import DaggerRequest, DatasetRecipe, ImitationFamily
 from agents.imitation.flights import collect_samples, make_env
+from agents.imitation.teachers import (
+    TEACHER_KINDS,
+    law_dagger_chunk,
+    law_dagger_rollouts,
+    parse_teacher,
+)
 from guidance.flight import fly
 from guidance.law import ActionSequenceLaw, CallableLaw
 from guidance.laws.pontryagin_planar import PontryaginExpert, planar_state_si
@@ -38,12 +44,12 @@ OBSERVATION_NAMES = ["altitude/h0", "vr/(0.1 v0)", "v_t/v0", "propellant/nominal
                      "t/time_limit"]
 #: certification tolerances on the solver's terminal errors (m, m/s)
 DEFAULT_TOLERANCES = {"radius_m": 1e-3, "speed_m_s": 1e-3}
-#: DAgger teachers (setting ``dagger.teacher``; the first is the default):
-#: ``privileged`` plans from the lander's true state with its true plant (the scenario's engine
-#: with the episode's drawn thrust and Isp scales: the omniscient feedback law);
-#: ``navigated`` plans from the navigation solution the student is given, with the nominal
-#: plant (a teacher that sees what the student sees). In the nominal world they coincide.
-TEACHERS = ("privileged", "navigated")
+#: the planar expert's two views (the built-in kinds of ``dagger.teacher``,
+#: :data:`agents.imitation.teachers.TEACHER_KINDS`): ``privileged`` plans from the lander's
+#: true state with its true plant (the scenario's engine with the episode's drawn thrust and
+#: Isp scales: the omniscient feedback law); ``navigated`` plans from the navigation solution
+#: the student is given, with the nominal plant. In the nominal world they coincide.
+TEACHERS = TEACHER_KINDS
 
 
 # --------------------------------------------------------------------------------- dataset
@@ -397,17 +403,30 @@ def planar_dagger_iteration(scenario, request: DaggerRequest
     """One planar DAgger iteration (see :meth:`optimizers.optimum.EnvFamily.
     dagger_iteration`): the policy flies alone (deterministic) from ``n_episodes`` dispersed
     starts (under the request's ``env_kwargs``, e.g. an ``uncertainty`` model), then
-    :func:`label_episodes` labels the visited states (settings ``teacher`` (:data:`TEACHERS`,
-    default ``privileged``), ``label_every``, ``dense_tail_s``, ``min_label_speed_m_s``
-    (default 3 m/s), ``tail_label_every`` (1)).
+    :func:`label_episodes` labels the visited states (settings ``teacher`` (``privileged``,
+    the default, or ``navigated``), ``label_every``, ``dense_tail_s``, ``min_label_speed_m_s``
+    (default 3 m/s), ``tail_label_every`` (1)). A law spec as ``teacher``
+    (:mod:`agents.imitation.teachers`) flies along instead and labels every decision, mixed
+    with the policy by the setting ``beta`` (default 0: the policy throughout).
 
     Raises
     ------
     ValueError
-        ``teacher`` is not one of :data:`TEACHERS` (checked before anything is flown).
+        ``teacher`` is not a teacher (checked before anything is flown).
     """
     dg = request.settings
-    teacher = check_teacher(dg.get("teacher", TEACHERS[0]))
+    choice = parse_teacher(dg.get("teacher"))
+    if choice.is_law:
+        t0 = time.perf_counter()
+        lab, roll = law_dagger_rollouts(
+            law_dagger_chunk, request.policy_file, request.load_learner, request.env_id,
+            request.env_kwargs, int(request.n_episodes), int(request.seed),
+            request.obs_features, float(dg.get("beta", 0.0)), choice,
+            n_workers=int(request.n_workers), cache_dir=request.store_dir,
+            progress=request.progress)
+        roll.update(rollout_wall_s=time.perf_counter() - t0, label_wall_s=0.0)
+        return lab, roll
+    teacher = choice.kind
     t0 = time.perf_counter()
     learner = request.load_learner(request.policy_file, request.env_id, request.env_kwargs,
                                    request.obs_features)

@@ -1,6 +1,8 @@
-"""The planar DAgger's two teachers: ``privileged`` (true state, true plant) and
-``navigated`` (the student's navigation solution, nominal plant), on short roll-outs under
-uncertainty models that isolate one kind of error; and the run's env arguments."""
+"""DAgger teachers, one contract for both families (:mod:`agents.imitation.teachers`): the
+planar expert's two views, ``privileged`` (true state, true plant) and ``navigated`` (the
+student's navigation solution, nominal plant), on short roll-outs under uncertainty models that
+isolate one kind of error; the pinpoint expert's two views; a law spec as teacher in either
+family; and the run's env arguments."""
 
 from __future__ import annotations
 
@@ -196,3 +198,72 @@ def test_dataset_recipes_of_both_families():
     for bad in (-0.1, float("nan")):
         with pytest.raises(ValueError, match="action_noise = .* must be finite and >= 0"):
             fam.dataset_recipe(pp_sc, 2, 0, action_noise=bad, **opts)
+
+
+def test_one_teacher_setting_for_every_family():
+    from agents.imitation.teachers import TEACHER_KINDS, Teacher, parse_teacher
+
+    assert TEACHER_KINDS == ("privileged", "navigated")
+    assert parse_teacher(None) == Teacher("privileged")
+    assert parse_teacher("navigated") == Teacher("navigated")
+    law = parse_teacher("apollo:kr=10")
+    assert law.is_law and law.spec == "apollo:kr=10" and str(law) == "apollo:kr=10"
+    for bad in ("oracle", "", 3, "Privileged", "nope:x=1"):
+        with pytest.raises(ValueError, match="dagger teacher|privileged, navigated"):
+            parse_teacher(bad)
+
+
+def _still(model, env_id, env_kwargs, obs_features):
+    """A module-level learner loader: a student that holds φ = 0."""
+    return _hold_attitude
+
+
+def test_a_law_teacher_labels_a_planar_dagger_iteration():
+    """A law spec as the planar teacher: the law flies along with the student (β = 0: the
+    student throughout) and labels every active decision with its own action, which a twin of
+    the law asked on the same observations gives again."""
+    from agents.imitation.families import DaggerRequest
+
+    request = DaggerRequest(env_id=ENV_ID, env_kwargs={"dt_s": 10.0}, policy_file="unused",
+                            load_learner=_still, obs_features=None, n_episodes=2, seed=3,
+                            settings={"teacher": "zem-zev"}, progress=False)
+    lab, roll = pd.planar_dagger_iteration(get_scenario(SCENARIO), request)
+    assert set(lab["status"]) == {"law"} and lab["actions"].shape == (len(lab["obs"]), 1)
+    assert len(lab["obs"]) > 10 and np.isfinite(lab["actions"]).all()
+    assert roll["rollout_policy_only_episodes"] == 2.0 and roll["label_wall_s"] == 0.0
+    assert np.abs(lab["actions"]).max() <= 1.0 and lab["actions"].std() > 0.0
+
+
+def test_the_pinpoint_expert_labels_from_the_view_its_setting_names():
+    """``privileged`` plans from the true state, ``navigated`` from the navigation solution;
+    an unknown view is refused."""
+    from agents.imitation.families.pinpoint import DaggerRolloutTeacher
+    from guidance.law import Navigation, Truth
+
+    class Expert:
+        last_status = ["optimal", "optimal"]
+
+        def reset(self, computer, case_ids):
+            pass
+
+        def labels(self, state_nd, t_s, active):
+            self.seen = np.array(state_nd)
+            return np.zeros((2, 2)), None, np.ones(2, dtype=bool)
+
+    class Computer:
+        @staticmethod
+        def actions_from_controls(controls):
+            return np.zeros((len(controls), 3), dtype=np.float32)
+
+    nav = Navigation(obs=np.zeros((2, 9), np.float32), state_nd=np.full((2, 7), 2.0),
+                     t_s=np.zeros(2), active=np.ones(2, dtype=bool))
+    truth = Truth(state_nd=np.full((2, 7), 1.0), t_s=np.zeros(2))
+    for view, want in (("privileged", 1.0), ("navigated", 2.0)):
+        expert = Expert()
+        roll = DaggerRolloutTeacher(expert, lambda obs: np.zeros((len(obs), 3), np.float32),
+                                    np.zeros(2), view=view)
+        roll.computer = Computer()
+        roll.act_privileged(nav, truth)
+        assert np.all(expert.seen == want), view
+    with pytest.raises(ValueError, match="view = 'truth' is not allowed"):
+        DaggerRolloutTeacher(Expert(), None, np.zeros(2), view="truth")

@@ -199,10 +199,10 @@ def test_pinpoint_ppo_quick_with_curriculum_features_and_shaping(tmp_path):
 
 
 def test_same_view_teacher_labels_every_decision_and_flies_until_its_switch():
-    """Issue 31: the law teacher (a guidance law on the navigation solution) is asked at every
+    """The law teacher (a guidance law on the navigation solution) is asked at every
     decision, whoever flies; its actions are the labels of the active landers; the learner
     flies each lander after that lander's switch time."""
-    from agents.imitation.families.pinpoint import LawRolloutTeacher
+    from agents.imitation.teachers import LawRolloutTeacher
     from guidance.law import CallableLaw, Navigation
 
     asked = []
@@ -232,10 +232,10 @@ def test_same_view_teacher_labels_every_decision_and_flies_until_its_switch():
 
 
 def test_same_view_teacher_is_told_the_actions_flown():
-    """The law's memory must follow the flight (issue 31, seventeenth session: the window
-    law's thrust estimate, fed its own controls while the student flew, was 8 % off): the
-    roll-out tells it the actions flown, the learner's after its switch, its own before."""
-    from agents.imitation.families.pinpoint import LawRolloutTeacher
+    """The law's memory must follow the flight (the window law's thrust estimate, fed its own
+    controls while the student flew, was 8 % off): the roll-out tells it the actions flown,
+    the learner's after its switch, its own before."""
+    from agents.imitation.teachers import LawRolloutTeacher
     from guidance.law import CallableLaw, Navigation
 
     told = []
@@ -259,7 +259,7 @@ def test_same_view_teacher_is_told_the_actions_flown():
 def test_same_view_teacher_drops_the_laws_guesses():
     """A law that reports a per-row status (the reserve law's ``last_status``): its guesses
     (no converged solve, "stale" / "fallback") are flown but not recorded as labels."""
-    from agents.imitation.families.pinpoint import LawRolloutTeacher
+    from agents.imitation.teachers import LawRolloutTeacher
     from guidance.law import CallableLaw, Navigation
 
     law = CallableLaw(lambda nav: np.zeros((nav.n, 3), dtype=np.float32), "teacher")
@@ -275,21 +275,22 @@ def test_same_view_teacher_drops_the_laws_guesses():
 
 
 def test_privileged_law_is_refused_as_a_same_view_teacher():
-    from agents.imitation.families.pinpoint import DaggerRolloutTeacher, LawRolloutTeacher
+    from agents.imitation.families.pinpoint import DaggerRolloutTeacher
+    from agents.imitation.teachers import LawRolloutTeacher
 
     privileged = DaggerRolloutTeacher(None, None, np.zeros(1))
     with pytest.raises(ValueError, match="same-view teacher"):
         LawRolloutTeacher(privileged, None, np.zeros(1))
 
 
-def test_bad_teacher_law_is_refused_before_flying(pinpoint_bc):
+def test_bad_teacher_is_refused_before_flying(pinpoint_bc):
     import agents.imitation.families.pinpoint as lab_mod
     from agents.imitation.policy import load_learner
 
     with pytest.raises(ValueError, match="unknown law 'nope'"):
         lab_mod.pinpoint_dagger_rollouts(pinpoint_bc / "model.zip", load_learner, ENV_ID, {}, 1,
                                          11, None, beta=0.0, progress=False,
-                                         teacher_law="nope:x=1")
+                                         teacher="nope:x=1")
 
 
 def test_dagger_rollouts_with_a_law_teacher_on_the_throttled_engine(monkeypatch):
@@ -302,12 +303,13 @@ def test_dagger_rollouts_with_a_law_teacher_on_the_throttled_engine(monkeypatch)
     import copy
 
     import agents.imitation.families.pinpoint as lab_mod
+    import agents.imitation.teachers as teachers
     from guidance.flight import fly
     from guidance.law import ActionSequenceLaw, Navigation, actions_of
 
     made = []
 
-    class Recording(lab_mod.LawRolloutTeacher):
+    class Recording(teachers.LawRolloutTeacher):
         def __init__(self, teacher, learner, switch_s):
             super().__init__(teacher, learner, switch_s)
             self.twin = copy.deepcopy(teacher)  # built, not yet reset: a fresh law
@@ -324,11 +326,11 @@ def test_dagger_rollouts_with_a_law_teacher_on_the_throttled_engine(monkeypatch)
             self.flown.append(out.copy())
             return out
 
-    monkeypatch.setattr(lab_mod, "LawRolloutTeacher", Recording)
+    monkeypatch.setattr(teachers, "LawRolloutTeacher", Recording)
     env_kwargs = {"dt_s": 4.0, "throttle_channel": True, "uncertainty": "standard"}
     lab, roll = lab_mod.pinpoint_dagger_rollouts(
         "unused", _fixed_learner, ENV_ID, env_kwargs, 1, 11, None, beta=1.0, progress=False,
-        teacher_law="zem-zev")
+        teacher="zem-zev")
     assert lab["actions"].shape[1] == 3 and len(lab["obs"]) > 10
     assert set(lab["status"]) == {"law"}
     assert np.isfinite(lab["actions"]).all() and (np.abs(lab["actions"]) <= 1.0).all()

@@ -207,7 +207,7 @@ class _Enough(Exception):
 def test_the_estimate_follows_the_controls_flown_when_another_policy_flies():
     # as a DAgger teacher the law labels while the student flies; fed its own controls, its
     # thrust estimate would credit the engine with the difference (70 % flown, 95 % asked)
-    from agents.imitation.families.pinpoint import LawRolloutTeacher
+    from agents.imitation.teachers import LawRolloutTeacher
 
     law = PinpointReserveExpert(_scenario(), 0.05, stop_above_m=12.0, estimate_thrust=True,
                                 terminal_window=True)
