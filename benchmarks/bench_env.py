@@ -4,12 +4,13 @@
     python benchmarks/bench_env.py [--quick] [--json FILE] [--env LunarSoftLanding-v0]
 
 Prints env-steps per second (one lander advanced by one env step = one env-step; the best of
-short timing chunks, as ``timeit`` does, to resist machine load) and ratios to the peer's
-single-env rate. Targets: native vector env >= 1000x the peer's single env; one env step
+short timing chunks, as ``timeit`` does, to resist other work on the machine) and ratios to the
+peer's single-env rate. Targets: native vector env >= 1000x the peer's single env; one env step
 < 20 µs; the native vector env under the ``standard`` uncertainty set (plant, navigation and
 sensor errors), with and without the IMU's observation channels (``sensors=("imu",)``), at
->= 80 % of its nominal throughput, all timed here in alternating chunks so that machine load
-hits them alike. Timings depend on machine load; run it on an idle machine for the record.
+>= 80 % of its nominal throughput, all timed here in alternating chunks so that other work on
+the machine hits them alike. Timings depend on that work; run it on an idle machine for the
+record.
 """
 
 from __future__ import annotations

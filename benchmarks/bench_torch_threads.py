@@ -1,13 +1,13 @@
 """PPO training on 1 against 2 torch threads: rollout and update time of the shipped entries.
 
-Issue 33: "training uses what the machine has". ``train.py`` sets ``torch.set_num_threads`` from
+Does training use what the machine has? ``train.py`` sets ``torch.set_num_threads`` from
 ``--torch-threads`` (default 1). This benchmark trains the shipped PPO entry of each env (the
 hyperparameters, observation features and reward shaping of ``agents/hyperparams/ppo.yml``;
 no start-state curriculum and no checkpoint selection, which cost the same under both settings)
-with 1 and with 2 torch threads, in alternating rounds (1, 2, 1, 2, ...) so that machine load
-hits both alike, and reports per setting the time spent collecting rollouts (env stepping and
-the policy's forward passes) and the time spent in the gradient updates, as the median over
-the rounds, with the ratios 2 threads / 1 thread (< 1: two threads are faster).
+with 1 and with 2 torch threads, in alternating rounds (1, 2, 1, 2, ...) so that other work on
+the machine hits both alike, and reports per setting the time spent collecting rollouts (env
+stepping and the policy's forward passes) and the time spent in the gradient updates, as the
+median over the rounds, with the ratios 2 threads / 1 thread (< 1: two threads are faster).
 
     python benchmarks/bench_torch_threads.py [--quick] [--json FILE] [--env ID ...]
                                              [--rollouts K] [--rounds R]

@@ -1,4 +1,4 @@
-"""Fuzz the envs' public inputs: construction arguments, reset options and actions (issue 18).
+"""Fuzz the envs' public inputs: construction arguments, reset options and actions.
 
 Every input must either *work* (the env keeps exactly the value asked for, observations lie in
 the observation space, rewards and infos are finite, a rejected action leaves the state as it

@@ -64,7 +64,7 @@ def _prange_only() -> dict:
     """numba's parallel options for the batch kernel: the ``prange`` over the rows only. With
     ``parallel=True`` numba also turned the output allocations (``np.zeros``, ``np.full``) into
     parallel loops, each compiled as a gufunc of its own (~4 s of compilation apiece from a
-    cold cache, issue 33) for no speed: the rows' work is the loop. (A new dict each time:
+    cold cache) for no speed: the rows' work is the loop. (A new dict each time:
     numba pops the keys.)"""
     return {"prange": True, "comprehension": False, "reduction": False, "inplace_binop": False,
             "setitem": False, "numpy": False, "stencil": False, "fusion": False}
@@ -77,8 +77,8 @@ def _instantiate(model_name: str, bindings: dict) -> tuple:
     Each copy gets its own qualified name so numba's on-disk cache keeps them apart. Only the
     two driver functions differ between the serial and the parallel kernel (``prange`` over
     the rows); the per-trajectory step loop (``propagate_lane``) and the helpers it calls are
-    compiled once and shared (issue 33: a second copy cost ~20 s of compilation per model from
-    a cold cache).
+    compiled once and shared (a second copy costs ~20 s of compilation per model from a cold
+    cache).
     """
     def copy(fname: str, ns: dict, kind: str):
         src = getattr(_tmpl, fname)

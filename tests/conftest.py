@@ -31,7 +31,7 @@ _WARMUP_WALL = pytest.StashKey[float]()
 def pytest_sessionstart(session):
     """Whole-suite run with xdist workers: fill numba's on-disk cache once, before the workers
     start, in two processes compiling disjoint halves of the kernels (``numba_warmup.py``), so
-    the workers load the kernels instead of both compiling most of them (issue 33). Runs in the
+    the workers load the kernels instead of both compiling most of them. Runs in the
     controller only (a worker has ``workerinput``) and only when the paths come from
     ``testpaths`` (a run of a few files compiles only what its tests need);
     ``LUNAR_TESTS_NUMBA_WARMUP=0`` turns it off, ``=1`` forces it for any paths."""

@@ -1,4 +1,4 @@
-"""Fill numba's on-disk cache once before the xdist workers start (issue 33).
+"""Fill numba's on-disk cache once before the xdist workers start.
 
 From a fresh clone every ``@numba.njit(cache=True)`` kernel compiles on first use. With two
 workers, each compiles the kernels its tests call, and both call most of them (the RK4 kernels

@@ -179,7 +179,7 @@ class StandardizedInputs(BaseFeaturesExtractor):
     ``train.py --init-from`` rebuild the same input map (PPO's own ``VecNormalize`` plays this
     role in RL runs). Why: the pinpoint inputs span very different scales (stop offsets of
     metres in a log column, times of hundreds of seconds), and the clone's angle error reaches
-    the ~0.1° it needs only on standardised inputs (issue 16).
+    the ~0.1° it needs only on standardised inputs.
     """
 
     def __init__(self, observation_space, mean=None, std=None) -> None:

@@ -115,7 +115,7 @@ def augment_pinpoint(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np.
     velocity) would end, as the offset target − stop point (radial, along, cross) in
     sign·log(1 + |x|/10 m)/8, and that braking time / 100 s.
 
-    Why these two (issue 16, measured with behaviour cloning of the Pontryagin feedback): the
+    Why these two (measured with behaviour cloning of the Pontryagin feedback): the
     stop point of a constant-thrust lander is the difference of two ~100 km quantities (range
     to go and braking distance), so with the other features an error of 100 m of range is a
     1e-5 change of the inputs, below what a regression resolves; a clone then drifts 1-10 km

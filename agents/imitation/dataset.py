@@ -204,19 +204,19 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
         bar = tqdm(total=int(n), initial=done_before, desc=f"optimal landings {sc.name}",
                    unit="traj")
     t0 = time.perf_counter()
-    # This session's timing is rewritten (atomically) after every shard, so a run killed
-    # part-way still accounts for the shards it finished.
+    # One timing record per call (a resumed dataset appends one), rewritten (atomically) after
+    # every shard, so a run killed part-way still accounts for the shards it finished.
     timing_file = shard_dir / "timing.json"
     timing = json.loads(timing_file.read_text()) if timing_file.exists() else []
-    session = {"new_shards": 0, "wall_s": 0.0, "n_workers": int(n_workers)}
-    timing.append(session)
+    record = {"new_shards": 0, "wall_s": 0.0, "n_workers": int(n_workers)}
+    timing.append(record)
 
     def _record_timing():
-        session["wall_s"] = time.perf_counter() - t0
+        record["wall_s"] = time.perf_counter() - t0
         write_text_atomic(timing_file, json.dumps(timing))
 
     def _on_shard(task, res):  # after the store wrote it
-        session["new_shards"] += 1
+        record["new_shards"] += 1
         _record_timing()
         if bar is not None:
             bar.update(len(task.args[0]["rows"]))
@@ -224,7 +224,7 @@ def generate(out: str | Path = DEFAULT_OUT, *, env_id: str = DEFAULT_ENV_ID,
     ex = executor
     if ex is None:
         ex = LocalExecutor(0 if int(n_workers) == 1 or n_todo <= 1 else int(n_workers))
-    session.update(n_workers=int(ex.n_workers), executor=ex.describe())
+    record.update(n_workers=int(ex.n_workers), executor=ex.describe())
     try:
         run_tasks(tasks, ex, store, on_result=_on_shard, max_tasks=max_shards)
     finally:

@@ -69,8 +69,8 @@ class RolloutCheckpointCallback(CheckpointCallback):
 
     The save happens at the *start* of the next rollout, i.e. after the algorithm trained on the
     previous one (SB3 calls ``on_rollout_end`` *before* ``train()``: a checkpoint taken there
-    counted a rollout the model had not learnt from, and a resumed run never trained on it —
-    issue 18, found by the kill-and-resume test). A resumed run therefore restarts from a state
+    counted a rollout the model had not learnt from, and a resumed run never trained on it). A
+    resumed run therefore restarts from a state
     where every counted step has been trained on exactly once. The ``VecNormalize`` statistics,
     the replay buffer (off-policy) and ``config`` (as ``checkpoints/config.yml``, once) are saved
     alongside, and the success-driven error scale (:class:`agents.rl.curriculum.

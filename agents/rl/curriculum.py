@@ -186,9 +186,9 @@ class ErrorScaleCurriculum(VecEnvWrapper):
 
     Why: under the full ``standard`` set a pinpoint policy that has not yet learnt to land
     almost never reaches the gate slowly enough to meet the success bonus (two seeds of the
-    shipped entry trained under it landed 0 of 100 cases, even without errors;
-    ``docs/notes/issue-31.md``); with smaller errors first, the policy learns the landing and
-    then its margins, as the start curriculum teaches the endgame first. The step-count
+    shipped entry trained under it landed 0 of 100 cases, even without errors); with smaller
+    errors first, the policy learns the landing and then its margins, as the start curriculum
+    teaches the endgame first. The step-count
     schedule can outrun the policy (a seed that landed 5.6 % of its training episodes at ×0.6
     lost them all by ×1): the success schedule raises the errors only as fast as the policy
     keeps landing.

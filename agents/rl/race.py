@@ -1,6 +1,6 @@
 """Seed race: train a few seeds side by side and keep the one that has learnt to land.
 
-Why (issue 16): whether a pinpoint PPO run meets the target is, to a large part, the seed's
+Why: whether a pinpoint PPO run meets the target is, to a large part, the seed's
 draw. Of fourteen seeds of the 9e6 entry trained alone, eleven land 95-100 % of the evaluation
 states; two never learn to land (0 %) and one lands 77.5 %. The default run therefore trains
 seeds ``seed, seed + 1`` in two processes, one per core (each at ~85-95 % of the speed of one
@@ -12,9 +12,8 @@ by the env's own verdict.
 Every candidate trains to the end, with its own checkpoint selection, and the run adopts the
 winner's selected policy: a run alone uses one core, so racing to the end costs little wall time
 (training and selection 690-811 s), and the choice is made on the final policies. (Deciding at
-70 % and continuing the winner alone was measured worse and removed in issue 28: ``--seed 28``'s
-seed 29, continued alone from 70 %, ended at 93.1 %, trained in one go at 99.0 %;
-docs/notes/issue-16.md, "Seventh session".)
+70 % and continuing the winner alone was measured and removed: ``--seed 28``'s seed 29,
+continued alone from 70 %, ended at 93.1 %, trained in one go at 99.0 %.)
 
 The candidates are keyed tasks on the project's executor
 (:class:`optimizers.common.executor.LocalExecutor`, one worker per candidate): a candidate whose

@@ -1,6 +1,6 @@
 """Choose a run's final policy among its checkpoints by landings on held-out states.
 
-Why (issue 16): the policy of one PPO update (or DAgger iteration) to the next trades cases —
+Why: the policy of one PPO update (or DAgger iteration) to the next trades cases —
 the pinpoint PPO's training success moved 93.0 → 89.9 % over its last two checkpoints, DAgger's
 iterates 95 / 100 / 98 % — so the last iterate is a draw from that spread. Ross et al. (2011)
 bound the *best* DAgger iterate, and SB3's ``EvalCallback(best_model_save_path=...)`` keeps the
@@ -85,8 +85,8 @@ def select_checkpoint(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | N
 
     If even the chosen one lands less than ``warn_below`` of the validation states (None: never),
     a warning on stderr says so before any evaluation runs: the run did not learn to land, and
-    no choice of checkpoint mends that (issue 16: two pinpoint PPO seeds of fourteen land 0 % on
-    every checkpoint). ``selection.yml`` records the flag."""
+    no choice of checkpoint mends that (measured: two pinpoint PPO seeds of fourteen land 0 %
+    on every checkpoint). ``selection.yml`` records the flag."""
     from agents.common.runs import checkpoints
     from lunar_env.validation import require_number
 

@@ -2,8 +2,8 @@
 
 Why: ``LunarSoftLanding-v0`` pays −fuel per step and −log(1 + v_td / 1 m/s) once, at the end of
 a ~700 s flight. Whether a steering decision early in the descent was good shows only hundreds
-of steps later, and PPO trained on that signal settled on "dive first, brake near the ground"
-(issue 7). The shaping term below pays, at every step, for the change of a potential Φ of the
+of steps later, and PPO trained on that signal settled on "dive first, brake near the ground".
+The shaping term below pays, at every step, for the change of a potential Φ of the
 state, F = γ·Φ(s') − Φ(s), with Φ(terminal) = 0. By Ng, Harada & Russell (1999) shaping of this
 form leaves the optimal policy of the discounted problem unchanged (the shaped return differs
 from the true one by −Φ(s₀), which no action changes), so the fuel-optimal soft landing stays the
@@ -26,8 +26,8 @@ Potential (YAML ``reward_shaping: {potential: surface_speed, weight: w}``):
     A terminal reward B paid when the env's own verdict calls the episode a success. It is not
     potential-based: it adds B to the return of every successful episode and nothing to the
     others, so among successes the fuel ordering is unchanged and the fuel-optimal landing (a
-    success) keeps the best return; only failures lose ground against successes. Why (issue
-    16): the env's terminal penalty −log(1 + v/1 m/s) − log(1 + miss/100 m) has its steepest
+    success) keeps the best return; only failures lose ground against successes. Why: the
+    env's terminal penalty −log(1 + v/1 m/s) − log(1 + miss/100 m) has its steepest
     slope at v = 0, miss = 0, so PPO spends its updates refining the landings that already
     succeed (a 100 m miss: 1/200 per m) more than rescuing those just outside the verdict (a
     1 km miss: 1/1100 per m), while the evaluation counts only the verdict. ``auto``: B equals

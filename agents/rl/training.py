@@ -141,7 +141,7 @@ def _normalize_updates(normalize: Any) -> bool:
     policy (``--init-from``), its statistics kept updating on the new run's observations
     (dispersed starts only, where the nominal run had also started from optimal trajectories)
     and the training success of the *unchanged* policy (learning rate 0) fell from 93 to
-    53 % in 0.66e6 steps (docs/notes/issue-31.md, fifth session).
+    53 % in 0.66e6 steps.
     """
     if isinstance(normalize, dict):
         return require_bool("normalize.update", normalize.get("update", True))
@@ -275,7 +275,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             venv.training = update_stats
         model = algo_class(algo).load(ckpt, env=venv, device=run.get("device", "cpu"),
                                        tensorboard_log=tb_dir)
-        model.verbose = int(run.get("verbose", 0))  # the console of this session
+        model.verbose = int(run.get("verbose", 0))  # the console of this process
         rb = ckpt.parent / f"rl_model_replay_buffer_{steps}_steps.pkl"
         if rb.exists() and hasattr(model, "load_replay_buffer"):
             model.load_replay_buffer(rb)
@@ -369,15 +369,16 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     previous = (yaml.safe_load(tfile.read_text()) or []) if tfile.exists() else []
 
     def record_timing() -> list:
-        """This session's timing, rewritten atomically at every checkpoint and at the end, so a
-        run killed part-way still accounts for the steps it saved."""
+        """This process's timing record (a resumed run appends one), rewritten atomically at
+        every checkpoint and at the end, so a run killed part-way still accounts for the steps
+        it saved."""
         wall_s = time.perf_counter() - t0
         done_steps = model.num_timesteps - steps0
-        session = {"train_wall_s_this_session": wall_s, "steps_this_session": int(done_steps),
+        record = {"train_wall_s_this_session": wall_s, "steps_this_session": int(done_steps),
                    "steps_per_s": done_steps / wall_s if wall_s > 0 else float("nan"),
                    "num_timesteps": int(model.num_timesteps)}
-        write_text_atomic(tfile, yaml.safe_dump(previous + [session]))
-        return previous + [session]
+        write_text_atomic(tfile, yaml.safe_dump(previous + [record]))
+        return previous + [record]
 
     ckpt_cb = RolloutCheckpointCallback(run_dir, run.get("save_freq") or max(n_timesteps // 20, 1),
                                         hp, on_save=record_timing)
@@ -411,10 +412,10 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
     if vn is not None:
         save_vecnormalize_atomic(vn, run_dir / "vecnormalize.pkl")
     save_model_atomic(model, run_dir / "model.zip")
-    sessions = record_timing()
-    total_wall = sum(s["train_wall_s_this_session"] for s in sessions)
-    print(f"Trained {model.num_timesteps} steps; this session {sessions[-1]['steps_this_session']}"
-          f" steps in {wall:.1f} s ({sessions[-1]['steps_per_s']:.0f} steps/s); total training "
+    records = record_timing()
+    total_wall = sum(s["train_wall_s_this_session"] for s in records)
+    print(f"Trained {model.num_timesteps} steps; this process {records[-1]['steps_this_session']}"
+          f" steps in {wall:.1f} s ({records[-1]['steps_per_s']:.0f} steps/s); total training "
           f"wall time {total_wall:.1f} s. "
           f"Model: {run_dir / 'model.zip'}")
     venv.close()

@@ -114,8 +114,8 @@ class PinpointReserveExpert(GuidanceLaw):
     the gate at 8.3 m/s), while a stop within tens of metres lands. A constant-thrust
     extremal can only stretch its range so far by steering (the family of extremals folds),
     so a short lander needs less thrust, not more. The reserve is what Apollo's throttled
-    guidance keeps by design (issue 31: a fuel-optimal constant-thrust plan brakes at full
-    thrust, so an engine weaker than planned cannot stop in time).
+    guidance keeps by design (a fuel-optimal constant-thrust plan brakes at full thrust, so an
+    engine weaker than planned cannot stop in time).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """The pinpoint terminal window: the last seconds flown so that an unknown altitude error at the
 gate still crosses it below the success speed.
 
-Why (issue 31). Under ``standard`` the navigated altitude at ``LunarPinpointLanding-v2``'s gate
+Why. Under ``standard`` the navigated altitude at ``LunarPinpointLanding-v2``'s gate
 carries a bias of 3.3 m (1σ) that nothing in the navigation reveals. A law that stops above the
 navigated gate and falls (the engine cuts off at the speed minimum) crosses the true gate below
 5 m/s only if the stop is 0-7.7 m above it: a window of 7.7 m, at most 75 % of the cases. With
@@ -10,7 +10,7 @@ engine stays on), at 5 m/s or less, descending throughout. The env's thrust box 
 <= 40°, azimuth within 40° of braking) forbids a hover, since holding the lander up pushes it
 backwards, so the window is a weave: full elevation, the azimuth swung from one side to the
 other, a third of the thrust. By optimal control it spans 15 m in 4 s, 19 m in 6 s and 19.9 m in
-8 s (``docs/notes/scripts/issue-31-terminal-window.py``): 99.7 % at 3.35 m.
+8 s: 99.7 % at 3.35 m.
 
 :class:`TerminalWindow` re-plans that window at every decision from the navigation solution
 (receding horizon): the controls of the next ``steps`` decisions that keep the navigated gate
@@ -82,8 +82,8 @@ class TerminalWindow:
         the end of a slowing one, exceeds ``velocity_error_m_s`` |a| + ``accel_error_m_s2``
         |v| either way. The defaults: 3σ of the navigated velocity's error at the gate under
         ``standard`` (0.1 m/s an axis), and ~2σ of the thrust estimate's error on ~2.5 m/s²
-        (measured on the issue-31 development cases: with a margin on the rate alone, a
-        0.2 m/s velocity error at 1 m/s made a minimum 9 m up and the lander fell).
+        (measured: with a margin on the rate alone, a 0.2 m/s velocity error at 1 m/s made a
+        minimum 9 m up and the lander fell).
     """
 
     def __init__(self, thrust_n: float, exhaust_velocity_m_s: float,

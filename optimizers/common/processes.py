@@ -1,7 +1,7 @@
 """Worker processes that do not outlive their parent.
 
 A ``ProcessPoolExecutor`` worker is not told when its parent is SIGKILLed: it finishes its task
-and then waits for the next one for ever (issue 18: ``agents.dataset`` workers were left running
+and then waits for the next one for ever (without this, ``agents.dataset`` workers keep running
 after a kill). :func:`exit_with_parent`, used as the pool's initializer, starts a daemon thread
 in each worker that ends the worker within ``period_s`` of the parent's death.
 """

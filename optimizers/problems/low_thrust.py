@@ -94,9 +94,9 @@ class LowThrustTransferProblem(Problem):
     radius_tol_m, speed_tol_m_s : float
         Success criterion (see the module docstring).
     parallel : bool
-        Threaded RK4 kernel (default False: measured on the shared 2-core machine, load ~11,
-        the serial kernel evaluates a GAIA generation's 1000 candidates at 33 µs each against
-        65 µs threaded, and a 100-candidate batch at 120 µs against 510 µs each).
+        Threaded RK4 kernel (default False: measured on 2 cores, the serial kernel evaluates
+        a GAIA generation's 1000 candidates at 33 µs each against 65 µs threaded, and a
+        100-candidate batch at 120 µs against 510 µs each).
 
     Raises
     ------

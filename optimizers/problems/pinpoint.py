@@ -20,7 +20,8 @@ The problem, in the paper's words (§1.2–1.3), on the Moon-fixed Cartesian mod
   path_constraints`) and checked on the replayed trajectory by the verdict
   (:meth:`PinpointOCP.success_from`, ``min_altitude_m`` >= 0), so a start below the gate, or one
   from which the unconstrained optimum dips under the ground, is either flown above the surface
-  or reported as a failure (issue 18 item 4: it used to report success at −4.7 km).
+  or reported as a failure (without the path constraint and this check, a solve from 1 km
+  reached −4.7 km and was reported a success).
 
 Verdict: position within 1 m of the target point, relative velocity within 0.01 m/s of the
 target's, above the surface everywhere, fuel within the budget.

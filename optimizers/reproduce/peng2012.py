@@ -358,7 +358,7 @@ def main(argv: list[str] | None = None) -> int:
             env["solution_tf_s"] = fine.tf_s
             env["solution_reference_replay_dop853"] = _reference_replay(fine, ocp)
             measured["env_replay"] = env
-        except ImportError as exc:  # the env module is written by another issue
+        except ImportError as exc:  # an installation without the env module
             measured["env_replay"] = {"skipped": f"LunarPinpointLanding-v0 unavailable: {exc}"}
 
     if not args.quick:

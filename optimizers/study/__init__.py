@@ -200,7 +200,7 @@ def _run_study(identity: dict, n_runs: int, settings: dict, problem_kwargs: dict
     wall = time.perf_counter() - t0
     rows = [results[t.key] for t in tasks if t.key in results]
     summary = summarise(rows, n_runs=int(n_runs))
-    summary.update(study_wall_s_this_session=wall, runs_this_session=report.n_done,
+    summary.update(study_wall_s_this_call=wall, runs_this_call=report.n_done,
                    runs_resumed=report.n_skipped, executor=report.executor)
     return {"identity": identity, "summary": summary, "optimum": optimum, "rows": rows,
             "out": str(out), "complete": len(rows) == int(n_runs)}
@@ -271,10 +271,10 @@ def markdown_table(study: dict[str, Any]) -> str:
         f"{_f(s['wall_s_per_run']['max'], '.2f')} |",
         f"| evaluations per run | {_f(s['n_fevals_mean'], '.0f')} |",
     ]
-    if "study_wall_s_this_session" in s:
-        lines.append(f"| study wall time, this session (s) | "
-                     f"{_f(s['study_wall_s_this_session'], '.1f')} "
-                     f"({s['runs_this_session']} runs; {s['runs_resumed']} resumed from disk) |")
+    if "study_wall_s_this_call" in s:
+        lines.append(f"| study wall time, this call (s) | "
+                     f"{_f(s['study_wall_s_this_call'], '.1f')} "
+                     f"({s['runs_this_call']} runs; {s['runs_resumed']} resumed from disk) |")
     if opt and opt.get("method") is None:
         lines += ["", f"Optimum: {opt.get('note', 'none')}"]
     elif opt:

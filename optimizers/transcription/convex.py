@@ -214,7 +214,8 @@ class SuccessiveConvexification:
         Γ_max of the throttled engine, in (0, 1]. Default 1. Below 1 the plan keeps a thrust
         margin (e.g. 0.94: three 1σ of a 2 % thrust error) for a re-planning law to spend
         when the engine is weaker than the model; the fuel it costs is the price of that
-        margin (docs/notes/issue-29.md). Only with ``engine="throttled"``.
+        margin (measured on zhu2007's planar descent: 0.94 costs +1.77 kg, +0.64 %). Only
+        with ``engine="throttled"``.
     solver : str
         cvxpy solver name. Default ``"CLARABEL"``.
     solver_options : dict, optional

@@ -278,7 +278,7 @@ def _result(ocp: PinpointOCP, ssol: ShootingSolution, gsol: GPMSolution | None, 
 _SOLVERS: OrderedDict[tuple, SerialSolver] = OrderedDict()
 #: why a bound: a built pinpoint solver holds ~300 MB of CasADi NLPs, and a process that
 #: solves many plants (each plant is its own scenario, e.g. a campaign's true engines) kept
-#: every one: 52 plants grew a process to 14-17 GB (docs/notes/issue-31.md)
+#: every one: 52 plants grew a process to 14-17 GB
 MAX_CACHED_SOLVERS = 4
 
 

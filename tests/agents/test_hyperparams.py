@@ -116,7 +116,7 @@ def test_the_pinpoint_throttle_entry_is_the_measured_fine_tune_with_a_throttle()
     """@robust_throttle is @robust_finetune (the same schedule, statistics and capped
     updates) with the throttle channel, the widening of the nominal policy's action head by
     one throttle channel at full thrust with the angles' exploration σ, one run (no race) and
-    the length it was measured at: the recipe of docs/notes/issue-31.md, not a variant of it."""
+    the length it was measured at: the measured recipe, not a variant of it."""
     import gymnasium as gym
 
     import lunar_env  # noqa: F401  (registers the ids)

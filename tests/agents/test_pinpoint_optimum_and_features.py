@@ -211,7 +211,7 @@ def test_from_dagger_profile_loads_the_pinpoint_clone():
 
 
 def test_pinpoint_ppo_entry_trains_from_the_dispersion_after_the_curriculum():
-    """Issue 16, fifth session: the PPO-from-scratch seeds that missed 95 % were still learning
+    """Measured: the PPO-from-scratch seeds that missed 95 % were still learning
     when training stopped (the curriculum annealed at 85 % of 6e6 steps, leaving 0.9e6 steps
     from the evaluation's own starts). The entry keeps the curriculum's 5.1e6 steps and then
     trains at least as long again from the dispersion, and the checkpoints the final policy is
@@ -227,13 +227,13 @@ def test_pinpoint_ppo_entry_trains_from_the_dispersion_after_the_curriculum():
     first_candidate = total - (ppo["select_checkpoint"]["last"] - 1) * save_every
     assert first_candidate > curriculum_end
     # the seed race (agents.rl.race) is decided at the end, on each candidate's own selected
-    # policy (issue 28 removed deciding at a share of training)
+    # policy (deciding at a share of training was measured and removed)
     assert ppo["seed_race"] == {"candidates": 2}
 
 
 def test_select_checkpoint_warns_when_no_checkpoint_lands(tmp_path, monkeypatch, capsys):
-    """Issue 16, fifth session: two pinpoint PPO seeds of fourteen land 0 % on every checkpoint; the
-    selection must say so (stderr, selection.yml) instead of quietly shipping the best of
+    """Two pinpoint PPO seeds of fourteen land 0 % on every checkpoint; the selection must say
+    so (stderr, selection.yml) instead of quietly shipping the best of
     nothing, and keep quiet for a run that lands."""
     import yaml
 

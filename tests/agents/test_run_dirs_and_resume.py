@@ -1,5 +1,5 @@
-"""Run directories and ``train.py --resume`` under concurrency, kills and damaged files (issue 18
-items 1-3): no two processes share a run directory, a damaged or missing checkpoint falls back
+"""Run directories and ``train.py --resume`` under concurrency, kills and damaged files: no
+two processes share a run directory, a damaged or missing checkpoint falls back
 or is refused without changing the run, and a run SIGKILLed at a seeded random point resumes to
 the uninterrupted run. Long variants are marked ``slow``.
 """
@@ -25,7 +25,7 @@ from proc_helpers import (
     wait_for,
 )
 
-# ----------------------------------------------------------------------- run directories (item 1)
+# -------------------------------------------------------------------------------- run directories
 
 
 _RUN_DIR_WORKER = """
@@ -43,7 +43,7 @@ _RUN_DIR_WORKER = """
 
 
 def test_concurrent_processes_never_share_a_run_directory(tmp_path):
-    """Several processes create runs in one folder at the same instant (issue 18 item 1)."""
+    """Several processes create runs in one folder at the same instant."""
     n_proc, per_proc = 6, 8
     start = time.time() + 1.5
     procs = [python(_RUN_DIR_WORKER, str(tmp_path), str(start), str(per_proc))
@@ -83,7 +83,7 @@ def test_explicit_run_dir_is_claimed_by_one_process(tmp_path):
         claim_run_dir(target)
 
 
-# --------------------------------------------------- damaged and missing checkpoints (items 2, 3)
+# ---------------------------------------------------------------- damaged and missing checkpoints
 
 
 _TRAIN_ARGS = ["--quick", "--n-envs", "2", "--no-eval", "--no-progress", "--no-tensorboard",
@@ -199,20 +199,20 @@ def _kill_and_resume_training(tmp_path, seed: int, n: int, kseed: int):
         # only after the last checkpoint recorded all n steps): either way timing.yml accounts for
         # the steps saved so far
         finished = (run_dir / "model.zip").exists()
-        killed_sessions = yaml.safe_load((run_dir / "timing.yml").read_text())
-        saved = killed_sessions[-1]["num_timesteps"]
+        killed_records = yaml.safe_load((run_dir / "timing.yml").read_text())
+        saved = killed_records[-1]["num_timesteps"]
         print(f"killed run: final model {'written' if finished else 'absent'}, {saved} of {n} "
               "steps recorded")
         if finished:
-            assert saved == n, (where, killed_sessions)
+            assert saved == n, (where, killed_records)
         else:
-            assert 0 < saved <= n, (where, killed_sessions)
+            assert 0 < saved <= n, (where, killed_records)
         assert _resume(run_dir) == 0
-        sessions = yaml.safe_load((run_dir / "timing.yml").read_text())
-        # the killed session is accounted for, and the resumed run ends where an uninterrupted
+        records = yaml.safe_load((run_dir / "timing.yml").read_text())
+        # the killed process's records are kept, and the resumed run ends where an uninterrupted
         # one does: every step trained exactly once
-        assert sessions[: len(killed_sessions)] == killed_sessions, where
-        assert sessions[-1]["num_timesteps"] == n, where
+        assert records[: len(killed_records)] == killed_records, where
+        assert records[-1]["num_timesteps"] == n, where
     return run_dir, where
 
 
@@ -230,7 +230,7 @@ def _compare_with_uninterrupted(run_dir, ref_dir):
 
 def test_run_killed_after_its_final_checkpoint_resumes(run_copy):
     """Killed between the final checkpoint and model.zip: the resume has nothing left to train
-    and used to fail with AttributeError (found by the random kill test)."""
+    and used to fail with AttributeError."""
     assert _resume(run_copy) == 0
     assert _steps_of(run_copy) == 256
 
@@ -380,7 +380,7 @@ def test_training_killed_at_random_points_slow(tmp_path, trial):
 @pytest.mark.slow
 @pytest.mark.parametrize("trial", range(5))
 def test_concurrent_training_runs_slow(tmp_path, trial):
-    """The issue's reproduction: two train.py processes at the same instant, one folder."""
+    """Two train.py processes at the same instant, one folder: each gets its own run."""
     code = """
         import sys, time
         start = float(sys.argv[1])

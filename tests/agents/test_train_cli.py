@@ -213,7 +213,7 @@ def test_resume_restores_the_success_driven_error_scale(tmp_path):
 
 def test_init_from_with_fixed_statistics_keeps_the_input_map(tmp_path):
     """normalize: {update: false} keeps the observation and reward statistics loaded by
-    --init-from (also after --resume); by default they keep updating. (Issue 31: the nominal
+    --init-from (also after --resume); by default they keep updating. (Measured: the nominal
     pinpoint policy's own statistics, updated by a fine-tuning run, moved its inputs and its
     training success fell from 93 to 53 % with a learning rate of 0.)"""
     import pickle

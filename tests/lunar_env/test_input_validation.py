@@ -1,5 +1,5 @@
-"""Bad inputs to the envs and scenarios are refused by name, and nothing changes (issue 18
-items 8-10): vector-env actions and resets, scenario dispersions and final-time bounds, env
+"""Bad inputs to the envs and scenarios are refused by name, and nothing changes: vector-env
+actions and resets, scenario dispersions and final-time bounds, env
 construction arguments, reset options, and a hypothesis fuzz of all of them
 (``benchmarks/fuzz_inputs.py``; the long fuzz is marked ``slow``).
 """
@@ -31,7 +31,7 @@ def _vec(env_id, n, **kw):
     return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kw)
 
 
-# --------------------------------------------------------------------------- vector envs (item 8)
+# ------------------------------------------------------------------------------------ vector envs
 
 
 def test_vector_env_refuses_transposed_actions():
@@ -78,7 +78,7 @@ def test_vector_env_failed_reset_changes_nothing_and_names_the_row(key):
     np.testing.assert_array_equal(env.reset()[0], ref.reset()[0])
 
 
-# ----------------------------------------------------------------------------- scenarios (item 9)
+# -------------------------------------------------------------------------------------- scenarios
 
 
 def test_pinpoint_scenario_refuses_impossible_dispersions():
@@ -109,7 +109,7 @@ def test_planar_scenario_refuses_negative_final_times():
 
 
 def test_pinpoint_scenario_every_dispersed_start_resets():
-    """A valid dispersion gives starts the env accepts (200 seeds, the issue's count)."""
+    """A valid dispersion gives starts the env accepts (200 seeds)."""
     peng = get_scenario("peng2012")
     wide = dataclasses.replace(peng, dispersion=PinpointDispersion(
         altitude_m=(-12_000.0, 0.0), mass_kg=(-290.0, 0.0)))
@@ -126,7 +126,7 @@ def test_pinpoint_scenario_every_dispersed_start_resets():
         assert info["fuel_used_kg"] == 0.0 and not info["is_success"], (seed, info)
 
 
-# ------------------------------------------------------ env arguments and reset options (item 10)
+# ---------------------------------------------------------------- env arguments and reset options
 
 
 @pytest.mark.parametrize("env_id", [SOFT, PIN])
@@ -224,7 +224,7 @@ def test_fuzz_env_inputs_slow():
 def test_pinpoint_success_miss_none_is_refused_by_name(env_id):
     """A pinpoint landing always has a miss criterion: ``success_miss_m=None`` is refused, as
     before the task contract (the shared settings read None as "no miss criterion" for the
-    planar task only; found by the input fuzz)."""
+    planar task only)."""
     with pytest.raises(ValueError, match="success_miss_m"):
         gym.make(env_id, success_miss_m=None)
 
@@ -232,7 +232,7 @@ def test_pinpoint_success_miss_none_is_refused_by_name(env_id):
 # ------------------------------------------------------------------ pinned starts and actions
 
 #: a pinned start the soft-landing env accepted, after which its next step returned NaN
-#: observations (found by test_fuzz_env_inputs_slow): mass ~10⁶ times the full tank, speed
+#: observations: mass ~10⁶ times the full tank, speed
 #: ~10⁶ times the orbital speed
 _NAN_START = [547846.7, -920853.1, -1836105.9, -1933889.5, 1253081.0]
 

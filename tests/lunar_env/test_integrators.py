@@ -159,7 +159,7 @@ def test_control_batch_mismatch_rejected():
 
 
 def test_touchdown_found_when_the_radius_dips_below_and_back_within_one_step():
-    """Regression (found by the DAgger expert): a lander braking to a stop 3 mm under the
+    """Regression: a lander braking to a stop 3 mm under the
     surface and climbing back within one step crosses the surface twice; the step's end points
     are both above it. The touchdown must still be located (the first crossing)."""
     rL = S.length_nd(SC.target.radius_m)
@@ -181,7 +181,7 @@ def test_touchdown_found_when_the_radius_dips_below_and_back_within_one_step():
 
 
 def test_read_only_inputs_do_not_compile_another_kernel():
-    """Bug fixed (issue 33): a read-only input (one trajectory's broadcast view, a user's frozen
+    """Bug fixed: a read-only input (one trajectory's broadcast view, a user's frozen
     array) made numba compile a separate specialisation of the RK4 kernel (~10 s each on a
     fresh machine, seven of them in the default test run). ``integrate`` hands the kernel
     writable copies: read-only and writable inputs give the same result and no new

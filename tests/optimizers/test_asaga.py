@@ -117,7 +117,7 @@ def test_checkpoint_resume_equals_uninterrupted(problem, tmp_path):
 
 
 def test_checkpoint_of_another_run_is_refused(problem, tmp_path):
-    # issue 18 item 6: a finished zhu2007 checkpoint used to answer for wang2003, and a
+    # a finished zhu2007 checkpoint used to answer for wang2003, and a
     # checkpoint of a longer run resumed with fewer generations returned fitness -2.3e36
     ck = tmp_path / "asaga.pkl"
     ASAGA(n_generations=4).solve(problem, seed=5, checkpoint=ck)
@@ -156,7 +156,7 @@ class _Reversed(_Infeasible):
 
 
 def test_no_false_success():
-    # issue 18 item 5: success used to be True whatever the problem said
+    # success is the problem's verdict, not True whatever the problem said
     res = ASAGA(n_generations=5).solve(_Infeasible(), seed=0)
     assert not res.success and not res.feasible
     assert res.terminal_errors["eq_0"] <= -8.0 + 1e-9

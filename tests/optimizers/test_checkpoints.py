@@ -1,5 +1,5 @@
-"""Optimiser checkpoints (ASAGA) under kills and damage (issue 18 items 2, 6): a solve SIGKILLed
-at a seeded random point resumes to the uninterrupted result, and a damaged checkpoint is named.
+"""Optimiser checkpoints (ASAGA) under kills and damage: a solve SIGKILLed at a seeded random
+point resumes to the uninterrupted result, and a damaged checkpoint is named.
 """
 
 from __future__ import annotations

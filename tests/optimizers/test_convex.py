@@ -121,7 +121,7 @@ def test_bad_settings_raise_a_value_error_naming_them(kwargs, name):
 
 
 def test_a_thrust_margin_caps_the_throttle_and_costs_propellant(planar):
-    """Issue 29: a plan at most 94 % of the maximum thrust (three 1σ of a 2 % thrust error)
+    """A plan at most 94 % of the maximum thrust (three 1σ of a 2 % thrust error)
     keeps a margin for a weaker engine; it lands, replayed, and pays for it in propellant
     (zhu2007's throttled optimum burns at full thrust throughout, as the constant engine)."""
     ocp, _, full = planar

@@ -296,7 +296,7 @@ def test_shooting_rejects_bad_guess(ocp):
 
 @pytest.mark.parametrize("altitude_m, u_m_s", [(1000.0, 0.0), (300.0, -60.0)])
 def test_no_success_through_the_moon(altitude_m, u_m_s):
-    # issue 18 item 4: from 1 km (or 300 m at -60 m/s) solve_serial used to report success for
+    # from 1 km (or 300 m at -60 m/s) solve_serial used to report success for
     # trajectories reaching -4716 m (-7673 m). The surface is now a path constraint at the nodes
     # and the verdict checks the replayed trajectory.
     import dataclasses

@@ -43,7 +43,7 @@ def test_problems_are_keyed_by_the_scenario_fingerprint():
 
 
 def test_many_plants_keep_a_bounded_number_of_problems_and_solvers():
-    """Bug fixed (issue 31): every plant's problem and solver (~300 MB of CasADi NLPs once
+    """Bug fixed: every plant's problem and solver (~300 MB of CasADi NLPs once
     built) stayed in the process-wide caches; 52 plants grew a process to 14-17 GB. Now the
     most recently used are kept, the oldest evicted, and a fetch still returns the live one."""
     from optimizers.transcription import serial

@@ -141,7 +141,7 @@ def test_bad_guess_is_refused():
 
 
 def test_the_stop_flown_to_is_reported_beyond_or_on_the_target():
-    # issue 31: the reserve law picks its engine by the side its extremal misses on
+    # the reserve law picks its engine by the side its extremal misses on
     import dataclasses
 
     import gymnasium as gym
@@ -164,7 +164,7 @@ def test_the_stop_flown_to_is_reported_beyond_or_on_the_target():
 
 
 def test_a_row_with_a_thrust_scale_flies_the_extremal_of_that_engine():
-    # issue 31: the reserve law plans its full engine with the thrust it estimated it has
+    # the reserve law plans its full engine with the thrust it estimated it has
     import dataclasses
 
     import gymnasium as gym
@@ -192,7 +192,7 @@ def test_a_row_with_a_thrust_scale_flies_the_extremal_of_that_engine():
 
 
 def test_a_guess_whose_newton_iterate_divides_by_zero_is_not_converged():
-    # issue 31, seventeenth session: a DAgger roll-out's state and warm start (a student's
+    # a DAgger roll-out's state and warm start (a student's
     # flight, the window law's thrust estimate) whose Newton iterate overflows its
     # integration, where the compiled kernel raised ZeroDivisionError and ended the run
     from optimizers.indirect.pinpoint_feedback import FeedbackConstants, solve_extremal

@@ -1,4 +1,4 @@
-"""Pontryagin shooting for the planar minimum-fuel landing (issue 5) and its collocation check."""
+"""Pontryagin shooting for the planar minimum-fuel landing and its collocation check."""
 
 import numpy as np
 import pytest
@@ -194,7 +194,7 @@ def test_thousand_dispersed_states(scenario):
 
 
 def test_degenerate_states_fail_cleanly(scenario):
-    # issue 18 item 7: a state already on the ground at rest raised ZeroDivisionError, and
+    # a state already on the ground at rest raised ZeroDivisionError, and
     # failures reported terminal errors of 0.0
     s = solve_planar_min_fuel(scenario, [1738e3, 0.0, 0.0, 0.0, 600.0])
     assert not s.success and "already meets the terminal conditions" in s.message

@@ -41,7 +41,7 @@ def test_study_resumes_and_equals_direct_runs(tmp_path):
     assert not part["complete"] and len(part["rows"]) == 2
     full = run_study("asaga", "zhu2007", 3, **kw)
     assert full["complete"] and full["summary"]["runs_resumed"] == 2
-    assert full["summary"]["runs_this_session"] == 1
+    assert full["summary"]["runs_this_call"] == 1
     problem = PlanarLandingProblem("zhu2007")
     for i, ss in enumerate(np.random.SeedSequence(3).spawn(3)):
         r = ASAGA(n_generations=4).solve(problem, seed=np.random.default_rng(ss))
@@ -138,7 +138,7 @@ def test_an_interrupted_study_stops_cleanly_and_resumes(tmp_path, capsys, sig, s
     again = run_study("asaga", "zhu2007", 60, settings=settings, out=out, certify_runs=False,
                       progress=False, max_tasks=1)
     assert again["summary"]["runs_resumed"] == len(stored)
-    assert again["summary"]["runs_this_session"] == 1
+    assert again["summary"]["runs_this_call"] == 1
 
 
 def test_cli_refuses_another_studys_directory_and_a_lost_identity(tmp_path, capsys):

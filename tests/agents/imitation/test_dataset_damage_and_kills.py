@@ -1,6 +1,6 @@
-"""Dataset generation (agents.imitation.dataset) under damage and kills (issue 18 items 3, 10): a
-damaged shard or dataset file is named and solved again, and a run SIGKILLed at a seeded
-random point leaves no orphan worker and resumes to the uninterrupted dataset.
+"""Dataset generation (agents.imitation.dataset) under damage and kills: a damaged shard or
+dataset file is named and solved again, and a run SIGKILLed at a seeded random point leaves no
+orphan worker and resumes to the uninterrupted dataset.
 """
 
 from __future__ import annotations
@@ -95,15 +95,15 @@ def _kill_and_resume_dataset(tmp_path, reference, n, kseed):
     sigkill_when(proc, started, delay, before_kill=lambda: workers.update(children(proc.pid)))
     with noted(where):
         assert workers, "the dataset run started no worker process"
-        # item 10: the workers end with their parent (no orphans left computing or waiting)
+        # the workers end with their parent (no orphans left computing or waiting)
         wait_for(lambda: not any(alive(p) for p in workers), 30)
         timing = json.loads((shards / "timing.json").read_text())
-        assert timing and timing[0]["new_shards"] >= 1  # the killed session is recorded
+        assert timing and timing[0]["new_shards"] >= 1  # the killed call's record is kept
         n_missing = n - len(list(shards.glob("results/*.npz")))
         generate(out, n=n, shard_size=1, n_workers=1, progress=False, n_steps=200)
         _assert_same_dataset(out, reference)
         timing = json.loads((shards / "timing.json").read_text())
-        # the killed session keeps its record (a kill between a shard's rename and the timing
+        # the killed call keeps its record (a kill between a shard's rename and the timing
         # update can leave that one shard uncounted); the resumed one solved only what was missing
         assert len(timing) == 2 and timing[1]["new_shards"] == n_missing
         assert n - 1 <= sum(t["new_shards"] for t in timing) <= n

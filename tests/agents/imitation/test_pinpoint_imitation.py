@@ -1,6 +1,6 @@
 """Imitation on LunarPinpointLanding-v2: the certified dataset of the Pontryagin feedback
 expert's flights, BC and DAgger with that expert as oracle, and the quick PPO run of the
-shipped pinpoint entry (CI versions of issue 16's pipeline)."""
+shipped pinpoint entry (CI versions of the imitation-then-PPO pipeline)."""
 
 from __future__ import annotations
 
@@ -27,8 +27,8 @@ def pinpoint_dataset(tmp_path_factory):
 @pytest.fixture(scope="module")
 def pinpoint_bc(pinpoint_dataset):
     """One quick BC run on the dataset, shared (read only) by the DAgger tests: the clone that
-    DAgger starts from and whose roll-outs the expert labels (issue 33: trained once, not once
-    per test)."""
+    DAgger starts from and whose roll-outs the expert labels (trained once, not once per
+    test)."""
     import agents.imitation.cli as im
 
     root, _ = pinpoint_dataset
@@ -137,7 +137,7 @@ def test_dagger_rollouts_mix_expert_and_policy(pinpoint_bc):
     """β = 0: every roll-out is the policy's alone; β = 1: every roll-out starts with the
     expert (up to a random switch time), so none counts as policy-only. The roll-outs fly 4 s
     decisions (the clone was trained at 1 s): what is checked is the mixing, and a quarter of
-    the expert's solves keeps this the cheap twin of a DAgger iteration (issue 33)."""
+    the expert's solves keeps this the cheap twin of a DAgger iteration."""
     import agents.imitation.families.pinpoint as lab_mod
     from agents.imitation.policy import load_learner
 
@@ -361,9 +361,10 @@ def _fixed_learner(model, env_id, env_kwargs, obs_features):
 
 
 def test_expert_flights_on_a_throttled_engine_keep_full_thrust_without_noise():
-    """Bug fixed in issue 31: on a throttled env the constant-thrust expert's labels lacked the
-    throttle channel (the dataset failed), and the noise, clipped at full thrust, would only
-    ever have weakened the engine. Labels: the throttle at +1; flown: noise on the angles only."""
+    """On a throttled env the constant-thrust expert's labels carry the throttle channel
+    (without it the dataset fails), and no noise is put on it (clipped at full thrust, noise
+    would only ever weaken the engine). Labels: the throttle at +1; flown: noise on the angles
+    only."""
     from types import SimpleNamespace
 
     import gymnasium as gym

@@ -1,4 +1,5 @@
-"""Observation features and potential-based shaping wrappers (agents side of issue 7)."""
+"""Observation features and potential-based shaping wrappers (agents side; the env is
+unchanged)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The pinpoint terminal window (:mod:`guidance.laws.terminal_window`, issue 31)."""
+"""The pinpoint terminal window (:mod:`guidance.laws.terminal_window`)."""
 
 from __future__ import annotations
 
@@ -75,7 +75,7 @@ def test_the_window_keeps_the_gate_inside_a_band_crossed_below_the_limit(window,
 
 
 def test_the_window_is_nearly_twice_the_fall_from_a_stop(window):
-    # measured (issue 31): 7.5 m either side from 12 m/s at 12 m up with the default margins
+    # measured: 7.5 m either side from 12 m/s at 12 m up with the default margins
     # (8.3 m without them), against 7.7 m in all for a fall from rest
     plan = window.plan(np.array([12.0, 0.0, -1.0]), 12.0, MASS_KG, GRAVITY)
     assert 2.0 * plan.margin_m > 1.8 * 25.0 / (2.0 * G_GATE)

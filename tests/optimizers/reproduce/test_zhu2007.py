@@ -49,12 +49,12 @@ def test_quick_reproduction_json_and_plots(tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason=(
-    "Does not reproduce (measured, see the ASAGA docstring and the issue-5 report): with the "
+    "Does not reproduce (measured, see the ASAGA docstring): with the "
     "paper's settings ASAGA's final moves are too coarse and, in the paper's normalised units, "
     "its Metropolis rule accepts ~100% of moves, so runs end metres/km and m/s off target; our "
     "optimum (Pontryagin and SLSQP on the cubic agree) is 277.5852 kg, not 277.5765 kg."))
 def test_full_reproduction_targets(tmp_path):
-    """The issue's targets for the paper's settings (10 runs × 300 generations)."""
+    """The reproduction's targets at the paper's settings (10 runs × 300 generations)."""
     m = _run(tmp_path, "--no-plots")["measured"]
     assert m["n_converged"] == 10
     assert m["mean_fuel_kg"] <= PUBLISHED["mean_fuel_kg"] + 0.05
