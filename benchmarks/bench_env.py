@@ -95,10 +95,11 @@ def _bench_env(env_id: str, min_s: float, rng: np.random.Generator, record) -> d
         venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
         native[n] = _time_vector(venv, rng.uniform(-1, 1, (20, n, dim)).astype(np.float32),
                                  min_s)
-        record(env_id, f"native vector env N={n}", native[n])
+        record(env_id, f"{env_id}, native vector env N={n}", native[n])
     n = sizes[-1]
-    for label, kw in ((f"native vector env N={n}, parallel kernel", dict(parallel=True)),
-                      (f"native vector env N={n}, substeps=1", dict(substeps=1))):
+    for label, kw in ((f"{env_id}, native vector env N={n}, parallel kernel",
+                       dict(parallel=True)),
+                      (f"{env_id}, native vector env N={n}, substeps=1", dict(substeps=1))):
         venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kw)
         native[label] = _time_vector(venv, rng.uniform(-1, 1, (20, n, dim)).astype(np.float32),
                                      min_s)
@@ -115,7 +116,7 @@ def _bench_env(env_id: str, min_s: float, rng: np.random.Generator, record) -> d
         for _ in range(3):
             rates["nominal"] = max(rates["nominal"], _time_vector(nominal, acts_u, min_s / 2))
             rates["standard"] = max(rates["standard"], _time_vector(standard, acts_u, min_s / 2))
-        record(env_id, f"native vector env N={n_unc}, uncertainty='standard'",
+        record(env_id, f"{env_id}, native vector env N={n_unc}, uncertainty='standard'",
                rates["standard"])
         unc_ratio[n_unc] = rates["standard"] / rates["nominal"]
     return {"single_env_step_us": 1e6 / single, "best_native": max(native.values()),
@@ -136,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
 
     def record(env_id: str, name: str, rate: float) -> None:
         rows.append((env_id, name, rate))
-        print(f"  {name:<56s} {rate:14,.0f} env-steps/s", flush=True)
+        print(f"  {name:<72s} {rate:14,.0f} env-steps/s", flush=True)
 
     print(f"machine: {platform.processor() or platform.machine()}, python {sys.version.split()[0]}"
           f"; envs {', '.join(args.env)}")
@@ -148,11 +149,11 @@ def main(argv: list[str] | None = None) -> int:
     summaries = {env_id: _bench_env(env_id, min_s, rng, record) for env_id in args.env}
 
     print()
-    print(f"{'configuration':<58s} {'env-steps/s':>14s} {'x peer':>9s} {'µs/env-step':>12s}")
+    print(f"{'configuration':<74s} {'env-steps/s':>14s} {'x peer':>9s} {'µs/env-step':>12s}")
     out = []
     for env_id, name, rate in rows:
         ratio = rate / peer_rate
-        print(f"{name:<58s} {rate:14,.0f} {ratio:9.1f} {1e6 / rate:12.2f}")
+        print(f"{name:<74s} {rate:14,.0f} {ratio:9.1f} {1e6 / rate:12.2f}")
         out.append({"env": env_id, "configuration": name, "env_steps_per_s": rate,
                     "ratio_to_peer": ratio, "us_per_env_step": 1e6 / rate})
     print()

@@ -49,6 +49,7 @@ from ..indirect.touchdown import replay as replay_extremal
 from ..problems.touchdown import MAX_MIN_MAX, TouchdownOCP
 from ..transcription.batch import nearest_neighbour_order, pinpoint_states, scenario_fingerprint
 from ..transcription.phased_gpm import (
+    MIN_ARC_FLOOR_S,
     MIN_ARC_S,
     PhasedGaussPseudospectral,
     PhasedGuess,
@@ -68,8 +69,8 @@ AGREEMENT_REL = 1e-6
 CACHE_FORMAT = 1
 #: the settings of both methods (part of the cache key)
 SOLVER_SETTINGS = {"structure": [1.0, "min", 1.0], "n_nodes_last": 30, "n_nodes_other": 10,
-                   "min_arc_s": MIN_ARC_S, "arc_steps": list(ARC_STEPS),
-                   "agreement_rel": AGREEMENT_REL}
+                   "min_arc_s": MIN_ARC_S, "min_arc_floor_s": MIN_ARC_FLOOR_S,
+                   "arc_steps": list(ARC_STEPS), "agreement_rel": AGREEMENT_REL}
 #: the method label of a certified optimum
 CERTIFIED = ("certified: phased LG collocation + Pontryagin multi-arc shooting "
              "(optimizers.optimum.touchdown)")

@@ -174,6 +174,28 @@ def test_imu_channels_are_appended_through_the_base_mechanism():
     assert imu[2] == pytest.approx(SC.vehicle.thrust_n / m, rel=2e-3)  # the specific force
 
 
+def test_uncertainty_infos_carry_the_truth_and_the_navigation_solution():
+    """Under ``standard`` the observation encodes the navigated state, and every info carries
+    it with the truth; the single and the vector env agree."""
+    env = gym.make(ENV_ID, uncertainty="standard").unwrapped
+    obs, info = env.reset(seed=5)
+    for _ in range(3):
+        obs, _, _, _, info = env.step(np.array([0.1, 0.0, 0.5], np.float32))
+    np.testing.assert_array_equal(info["state_nd"], env.state_nd)
+    np.testing.assert_array_equal(info["navigation_state_nd"], env.navigation_state_nd)
+    assert not np.array_equal(info["state_nd"], info["navigation_state_nd"])
+    np.testing.assert_array_equal(
+        obs, env.observation_from_state(info["navigation_state_nd"][None],
+                                        np.array([info["time_s"]]))[0])
+    venv = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point",
+                        uncertainty="standard")
+    vobs, _ = venv.reset(seed=5)
+    for _ in range(3):
+        vobs, _, _, _, vinfo = venv.step(np.tile([0.1, 0.0, 0.5], (2, 1)).astype(np.float32))
+    np.testing.assert_array_equal(vobs[0], obs)
+    np.testing.assert_array_equal(vinfo["navigation_state_nd"][0], info["navigation_state_nd"])
+
+
 def test_touchdown_is_located_inside_the_step_against_dop853():
     """A lander 30 m above the site, sinking at 6 m/s and drifting 1 m/s east at the minimum
     throttle, touches down 4.6 s into an 8 s step: the step's touchdown speed, components and
