@@ -10,7 +10,8 @@ the kernels. Constructors validate their input: an invalid value raises ``ValueE
 the field, the value and what is allowed.
 
 Registry: ``zhu2007`` ([000]), ``peng2012`` ([001]), ``peng_mars`` ([002]), ``wang2003``
-([003]), ``wang2001`` ([004], with the alias ``wang2001_transfer``).
+([003]), ``wang2001`` ([004], with the alias ``wang2001_transfer``), and ``peng2012_touchdown``
+([001]'s start continued to touchdown with a throttleable engine, ``LunarPinpointLanding-v3``).
 """
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ from .validation import require_finite, require_finite_positive, require_range
 __all__ = [
     "Body", "Vehicle", "PlanarState", "PlanarTarget", "PlanarDispersion", "PlanarScenario",
     "PinpointState", "PinpointTarget", "PinpointDispersion", "PinpointScenario",
-    "ImpulsiveTransferScenario", "get_scenario", "register_scenario", "list_scenarios",
+    "TouchdownScenario", "ImpulsiveTransferScenario", "get_scenario", "register_scenario",
+    "list_scenarios",
     "G0_PAPER_M_S2", "MOON", "SUN", "EARTH",
 ]
 
@@ -510,6 +512,45 @@ class PinpointScenario:
                               st.inclination_rad, st.mass_kg + dm[k]) for k in range(n)]
 
 
+@dataclass(frozen=True)
+class TouchdownScenario(PinpointScenario):
+    """A pinpoint landing that ends at touchdown on the target, with a throttleable engine.
+
+    The geometry, dynamics and fields are :class:`PinpointScenario`'s; the target lies on the
+    landing surface (``target.altitude_m`` is the height of the site above the reference sphere,
+    0 on it), and the engine throttles between ``throttle_min`` and 1 of ``vehicle.thrust_n``.
+
+    Attributes
+    ----------
+    throttle_min : float
+        Lowest throttle of the running engine, a fraction of ``vehicle.thrust_n`` in (0, 1):
+        the engine is lit for the whole descent and throttles in [throttle_min, 1] (it stops
+        only when the propellant is exhausted).
+
+    The family differs from ``"pinpoint"``: the per-case optimum is another problem (minimum
+    propellant with the throttle's max–min–max arcs, not [001]'s constant-thrust minimum time)
+    and a thrust command's throttle maps onto [throttle_min, 1], so the optimum and the
+    guidance encoder of the family are their own (:mod:`optimizers.optimum.touchdown`,
+    :mod:`guidance.families.touchdown`).
+    """
+
+    throttle_min: float = 0.2
+
+    family = "pinpoint_touchdown"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        v = self.throttle_min
+        if not (isinstance(v, numbers.Real) and not isinstance(v, bool) and 0.0 < v < 1.0):
+            raise ValueError(f"{self.name}.throttle_min = {v!r} is not allowed; it must be in "
+                             "(0, 1) (a fraction of the maximum thrust)")
+
+    @property
+    def thrust_min_n(self) -> float:
+        """Lowest thrust of the running engine (N)."""
+        return self.throttle_min * self.vehicle.thrust_n
+
+
 # ---------------------------------------------------------------------------------------------
 # Two-impulse transfer / interception ([004])
 # ---------------------------------------------------------------------------------------------
@@ -629,6 +670,38 @@ PENG2012 = PinpointScenario(
     fuel_max_kg=300.0,
 )
 
+# [001]'s start continued to touchdown on the target (25°E, 9°N) on the reference sphere, through
+# approach and terminal descent (LunarPinpointLanding-v3). Start, dispersion, body, thrust and Isp
+# are peng2012's. The thrust elevation may reach the vertical (a lander hovers and descends
+# vertically at the end) and the azimuth covers the whole circle (terminal descent corrects
+# its horizontal velocity in any direction); [001]'s |u|, |w| <= 110 m/s belong to its braking
+# phase and are not carried over.
+# Throttle: the engine class of Chang'e-3's 7500 N variable-thrust engine, throttled
+# continuously from 1500 N to 7500 N (SASTIND / Xinhua, 5 Dec 2013; the engine's development:
+# Sci. Sin. Technol. 44(6), 2014), i.e. throttle_min = 1500/7500 = 0.2 of full thrust.
+# Propellant: peng2012's 300 kg load is kept (dry mass 300 kg), a decision measured against a
+# flown margin. The nominal minimum-fuel landing to touchdown with this throttle uses 277.58 kg
+# (optimizers.optimum.touchdown, two methods agreeing), leaving 22.4 kg: 126 s of hover at the
+# touchdown mass (322 kg, 1.623 m/s², c = 2940 m/s). Apollo's landings touched down with 45 s
+# (Apollo 11) to 117 s (Apollo 17) of hover propellant left (Apollo Lunar Surface Journal,
+# landing commentaries). The dispersion's most demanding start (the corner of the box with the
+# lightest tank) keeps 16.7 kg, 96 s: more than Apollo 11's (tests/optimizers/
+# test_touchdown_optimum.py measures both). A larger load would only add margin the guidance
+# laws are not asked to need; a smaller one would leave less than Apollo 11 at the corners.
+PENG2012_TOUCHDOWN = TouchdownScenario(
+    name="peng2012_touchdown",
+    reference="[001] Peng, Li, Shen, Tang 2012 (start, vehicle), continued to touchdown",
+    body=MOON_ROTATING,
+    vehicle=PENG2012.vehicle,
+    initial=PENG2012.initial,
+    target=PinpointTarget(altitude_m=0.0, longitude_rad=_deg(25.0), latitude_rad=_deg(9.0)),
+    dispersion=PENG2012.dispersion,
+    tf_bounds_s=PENG2012.tf_bounds_s,
+    alpha_bounds_rad=(_deg(-50.0), _deg(90.0)),
+    beta_bounds_rad=(0.0, 2 * math.pi),
+    throttle_min=1500.0 / 7500.0,
+)
+
 # [003] Wang et al. 2003: m0 = 500 kg, Isp = 300 s, T in [0, 4] kN (vehicle thrust = the upper
 # bound; the design thrust is a throttle on it), h0 = 15 km, v_t0 = 1692.04 m/s. μ and R_L are
 # not stated: those of [000]. Dry mass: not stated; 150 kg leaves the 44.38 % burn room.
@@ -675,6 +748,7 @@ WANG2001 = ImpulsiveTransferScenario(
 
 register_scenario(ZHU2007)
 register_scenario(PENG2012)
+register_scenario(PENG2012_TOUCHDOWN)
 register_scenario(WANG2003)
 register_scenario(PENG_MARS)
 register_scenario(WANG2001, "wang2001_transfer")

@@ -106,7 +106,7 @@ def warm(part: str) -> None:
         _pinpoint_expert()  # its own kernels, no integrator's
         _lambert(parallel=False)
     else:
-        _envs(("LunarPinpointLanding-v2",))
+        _envs(("LunarPinpointLanding-v2", "LunarPinpointLanding-v3"))
         _lambert(parallel=True)
 
 

@@ -8,9 +8,10 @@ vehicle's pointing bounds. Laws never ask for the family: they read ``nav.frame`
 :mod:`guidance.laws.baselines`; its plots :mod:`guidance.evaluation.plots`.)
 
 Families are registered in :data:`GUIDANCE_FAMILIES` (a
-:class:`lunar_env.families.FamilyRegistry`) by the modules that own them: ``planar`` and
-``pinpoint`` here; an installed package adds its own through the ``lunar_env.guidance_families``
-entry-point group, or by calling ``GUIDANCE_FAMILIES.register``.
+:class:`lunar_env.families.FamilyRegistry`) by the modules that own them: ``planar``,
+``pinpoint`` and ``pinpoint_touchdown`` here; an installed package adds its own through the
+``lunar_env.guidance_families`` entry-point group, or by calling
+``GUIDANCE_FAMILIES.register``.
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ GUIDANCE_FAMILIES: FamilyRegistry[GuidanceFamily] = FamilyRegistry(
     "guidance", entry_point_group="lunar_env.guidance_families")
 GUIDANCE_FAMILIES.register("planar", "guidance.families.planar:PlanarGuidance")
 GUIDANCE_FAMILIES.register("pinpoint", "guidance.families.pinpoint:PinpointGuidance")
+GUIDANCE_FAMILIES.register("pinpoint_touchdown", "guidance.families.touchdown:TouchdownGuidance")
 
 
 def guidance_family(obj) -> GuidanceFamily:

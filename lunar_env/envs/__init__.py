@@ -4,8 +4,10 @@
 - ``LunarPinpointLanding-v1``: :class:`~lunar_env.envs.pinpoint_landing.LunarPinpointLandingEnv`
   (``-v0``: the same env with the pre-issue-16 reward, ``charge_propellant_on_failure=False``;
   ``-v2``: the 2 km gate counts only within 10 km of the target, ``gate_range_m=10000``)
+- ``LunarPinpointLanding-v3``: :class:`~lunar_env.envs.pinpoint_touchdown.LunarPinpointTouchdownEnv`
+  (to touchdown on the target with a throttleable engine, ``peng2012_touchdown``)
 
-Both have a native vector env (``gym.make_vec(id, num_envs=N,
+Each has a native vector env (``gym.make_vec(id, num_envs=N,
 vectorization_mode="vector_entry_point")``).
 
 Public API for code built on the envs (agents, adapters, benchmarks): the env bases
@@ -34,11 +36,14 @@ _ENVS = {
     "LunarPinpointLanding-v0": ("pinpoint_landing", "LunarPinpointLandingEnv",
                                 "LunarPinpointLandingVectorEnv",
                                 {"charge_propellant_on_failure": False}),
+    # v3: to touchdown on the target with a throttleable engine (its own task)
+    "LunarPinpointLanding-v3": ("pinpoint_touchdown", "LunarPinpointTouchdownEnv",
+                                "LunarPinpointTouchdownVectorEnv", {}),
 }
 
 
 def register_envs() -> None:
-    """Register both ids (idempotent). The episode length is handled by the envs themselves
+    """Register every id (idempotent). The episode length is handled by the envs themselves
     (``time_limit_s``), so no ``TimeLimit`` wrapper is added."""
     for env_id, (mod, cls, vec_cls, kwargs) in _ENVS.items():
         if env_id in registry:

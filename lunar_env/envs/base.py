@@ -113,10 +113,10 @@ def check_reset_options(options, n_state: int, num_envs: int | None = None,
             _check_state_option(key, options[key], n_state, num_envs)
 
 
-def _single_info(q: dict[str, np.ndarray], has_target: bool) -> dict:
+def _single_info(q: dict[str, np.ndarray], has_target: bool, extra_keys: tuple = ()) -> dict:
     """Gymnasium single-env info of lander 0 of :meth:`LanderBatch.info_arrays` ``q``: Python
-    scalars, and only where defined (no NaN in infos): the touchdown speed after touchdown, the
-    miss distance at the end of a pinpoint episode."""
+    scalars, and only where defined (no NaN in infos): the touchdown speed (and the task's
+    ``extra_keys``) after touchdown, the miss distance at the end of a pinpoint episode."""
     # .item(): the Python scalar of a one-element array, the cheapest conversion
     info = {"fuel_used_kg": q["fuel_used_kg"].item(), "is_success": q["is_success"].item(),
             "altitude_m": q["altitude_m"].item(), "time_s": q["time_s"].item()}
@@ -126,19 +126,23 @@ def _single_info(q: dict[str, np.ndarray], has_target: bool) -> dict:
     miss = q["miss_distance_m"].item()
     if has_target and miss == miss:
         info["miss_distance_m"] = miss
+    for k in extra_keys:
+        v = q[k].item()
+        if v == v:
+            info[k] = v
     return info
 
 
-def _vector_info(q: dict[str, np.ndarray], has_target: bool) -> dict:
+def _vector_info(q: dict[str, np.ndarray], has_target: bool, extra_keys: tuple = ()) -> dict:
     """Gymnasium vector-env info of :meth:`LanderBatch.info_arrays` ``q``: "_key" marks the
-    sub-envs where "key" is defined (touchdown speed after a touchdown; miss distance at the end
-    of a pinpoint episode), undefined entries are 0."""
+    sub-envs where "key" is defined (touchdown speed and the task's ``extra_keys`` after a
+    touchdown; miss distance at the end of a pinpoint episode), undefined entries are 0."""
     info = {k: q[k] for k in ("fuel_used_kg", "is_success", "altitude_m", "time_s")}
     mask = np.ones(len(q["time_s"]), dtype=bool)
     for k in list(info):
         info["_" + k] = mask
     keys = ("touchdown_speed_m_s", "miss_distance_m") if has_target else ("touchdown_speed_m_s",)
-    for k in keys:
+    for k in (*keys, *extra_keys):
         undefined = np.isnan(q[k])
         info[k] = np.where(undefined, 0.0, q[k])
         info["_" + k] = ~undefined
@@ -196,11 +200,9 @@ class _TaskDescription:
     @property
     def success_thresholds(self) -> dict[str, float]:
         """The env's own landing verdict: ``speed_m_s`` (largest touchdown or gate speed of a
-        success) and, for a pinpoint task, ``miss_m`` (largest miss distance)."""
-        out = {"speed_m_s": float(self._task.success_speed_m_s)}
-        if self._task.has_target:
-            out["miss_m"] = float(self._task.success_miss_m)
-        return out
+        success), for a pinpoint task ``miss_m`` (largest miss distance), and whatever limits
+        the task adds (:meth:`~lunar_env.envs.task.LandingTask.success_thresholds`)."""
+        return self._task.success_thresholds()
 
     def observation_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """SI quantities encoded in observations (B, n_obs) (the inverse of the observation
@@ -335,7 +337,7 @@ class LanderEnv(_TaskDescription, gym.Env):
         none = np.full(1, np.nan)
         q = b.info_arrays(none, none, np.zeros(1, dtype=bool))
         obs = b.observations(q["time_s"])[0]
-        info = _single_info(q, self._task.has_target)
+        info = _single_info(q, self._task.has_target, self._task.extra_info_keys)
         if b.uncertain:
             info["state_nd"] = b.y[0].copy()
             info["navigation_state_nd"] = b.last_navigation[0].copy()
@@ -360,12 +362,12 @@ class LanderEnv(_TaskDescription, gym.Env):
         # scratch results: read at once below (Python scalars), so no new arrays are needed
         out = b.step(controls, scratch=True)
         q = b.info_arrays(out["touchdown_speed_m_s"], out["miss_distance_m"], out["is_success"],
-                          scratch=True)
+                          scratch=True, extras=out)
         obs = b.observations(q["time_s"])[0]
         terminated = out["terminated"].item()
         truncated = out["truncated"].item()
         self._done = terminated or truncated
-        info = _single_info(q, self._task.has_target)
+        info = _single_info(q, self._task.has_target, self._task.extra_info_keys)
         if b.uncertain:
             info["state_nd"] = b.y[0].copy()
             info["navigation_state_nd"] = b.last_navigation[0].copy()
@@ -521,7 +523,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         return {"reward": out["reward"], "terminated": out["terminated"],
                 "truncated": out["truncated"],
                 **self._batch.info_arrays(out["touchdown_speed_m_s"], out["miss_distance_m"],
-                                          out["is_success"])}
+                                          out["is_success"], extras=out)}
 
     def _initial_state(self, i: int, options: dict | None) -> np.ndarray:
         opt = options
@@ -611,12 +613,15 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         speed = np.full(n, np.nan)
         miss = np.full(n, np.nan)
         success = np.zeros(n, dtype=bool)
+        extra_keys = self._task.extra_info_keys
+        extras = {k: np.full(n, np.nan) for k in extra_keys}
         reset_idx = np.flatnonzero(self._autoreset)
         if len(reset_idx) == 0:
             out = self._batch.step(controls)
             reward, terminated, truncated = out["reward"], out["terminated"], out["truncated"]
             speed, miss, success = (out["touchdown_speed_m_s"], out["miss_distance_m"],
                                     out["is_success"])
+            extras = {k: out[k] for k in extra_keys}
         else:
             act = np.flatnonzero(~self._autoreset)
             if len(act):
@@ -627,18 +632,20 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
                 speed[act] = out["touchdown_speed_m_s"]
                 miss[act] = out["miss_distance_m"]
                 success[act] = out["is_success"]
+                for k in extra_keys:
+                    extras[k][act] = out[k]
             for i in reset_idx:
                 self._reset_one(int(i), None)
         self._autoreset = terminated | truncated
-        obs, info = self._observe_and_info(speed, miss, success)
+        obs, info = self._observe_and_info(speed, miss, success, extras)
         return obs, reward, terminated, truncated, info
 
-    def _observe_and_info(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray
-                          ) -> tuple[np.ndarray, dict]:
+    def _observe_and_info(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray,
+                          extras: dict | None = None) -> tuple[np.ndarray, dict]:
         b = self._batch
-        q = b.info_arrays(speed, miss, success)
+        q = b.info_arrays(speed, miss, success, extras=extras)
         obs = b.observations(q["time_s"])
-        info = _vector_info(q, self._task.has_target)
+        info = _vector_info(q, self._task.has_target, self._task.extra_info_keys)
         if b.uncertain:
             info["state_nd"] = b.y.copy()
             info["navigation_state_nd"] = b.last_navigation.copy()

@@ -6,15 +6,19 @@ An env step (:meth:`LanderBatch.step`):
 1. **Powered flight**: the action is held constant over ``dt_s`` and integrated by the compiled
    RK4 kernel of :mod:`lunar_env.integrators` (``substeps`` RK4 steps, the control laid out as
    ``PiecewisePolynomial.constant`` would lay it out) with the events ``RadiusCrossing`` at the
-   landing radius and ``SpeedMinimum`` (engine cut-off), both located inside the step. Fuel
-   exhaustion at the dry mass ends the burn inside the kernel.
+   landing radius and, for an engine that cuts off (:attr:`~lunar_env.envs.task.LandingTask.
+   engine_cutoff`: the papers' constant-thrust, steer-only engine; not a throttleable one),
+   ``SpeedMinimum``, both located inside the step. Fuel exhaustion at the dry mass ends the
+   burn inside the kernel.
 2. **Engine cut-off or burnout → free fall in the same step**: a lander whose engine stopped
    (speed minimum reached, or propellant exhausted) is integrated with throttle 0 until it
    crosses the landing radius (touchdown), at most ``max_fall_s`` (then it is truncated: a
    ballistic arc that does not come down). The episode therefore always ends in the step in which
    the engine stops.
-3. **Bookkeeping**: fuel reward, terminal landing-quality term, truncation at the time limit,
-   and the per-lander quantities every ``info`` reports (:meth:`LanderBatch.info_arrays`).
+3. **Bookkeeping**: fuel reward, the task's terminal landing-quality term and verdict
+   (:meth:`~lunar_env.envs.task.LandingTask.terminal_penalty`, ``landed_within_limits``),
+   truncation at the time limit, and the per-lander quantities every ``info`` reports
+   (:meth:`LanderBatch.info_arrays`, with the task's own touchdown keys).
 
 Under a task's uncertainty model (:mod:`lunar_env.uncertainty`; none by default) the batch also
 holds each lander's episode errors (:class:`~lunar_env.uncertainty.EpisodeErrors`, which apply
@@ -217,6 +221,9 @@ class LanderBatch:
                        task.time_limit_s - 1e-9 * task.dt_s)
         self._dt_nd = task.dt_nd
         self._substeps = task.substeps
+        # the SpeedMinimum event (engine cut-off) is armed for engines that cannot throttle
+        self._cutoff = bool(task.engine_cutoff)
+        self._extra_keys = tuple(task.extra_info_keys)
         self._parallel = (self.n >= PARALLEL_MIN_BATCH if parallel is None else bool(parallel)) \
             and numba.config.NUMBA_NUM_THREADS > 1
         # the kernel's parameters, one row per lander (a plant error changes a lander's row)
@@ -370,13 +377,16 @@ class LanderBatch:
         return {"imu": self._imu(measured=True)}
 
     def info_arrays(self, speed: np.ndarray, miss: np.ndarray, success: np.ndarray,
-                    scratch: bool = False) -> dict[str, np.ndarray]:
-        """What every ``info`` reports, per lander (n,), keys :data:`INFO_KEYS`.
+                    scratch: bool = False, extras: dict | None = None
+                    ) -> dict[str, np.ndarray]:
+        """What every ``info`` reports, per lander (n,), keys :data:`INFO_KEYS` and the task's
+        :attr:`~lunar_env.envs.task.LandingTask.extra_info_keys`.
 
         ``fuel_used_kg`` since the episode's start (kg), ``is_success``, ``altitude_m`` (m),
         ``time_s`` (s), ``touchdown_speed_m_s`` (m/s) and ``miss_distance_m`` (m) (``speed``,
-        ``miss``: NaN where undefined, as :meth:`step` returns them). ``scratch``: as in
-        :meth:`step` (fuel and time in the batch's buffers, valid until the next call).
+        ``miss``: NaN where undefined, as :meth:`step` returns them); the extra keys from
+        ``extras`` (e.g. :meth:`step`'s result; NaN where undefined or absent). ``scratch``:
+        as in :meth:`step` (fuel and time in the batch's buffers, valid until the next call).
         """
         task = self._task
         if scratch:
@@ -386,8 +396,11 @@ class LanderBatch:
             t_s = np.empty(self.n)
         _fuel_used_and_time(self.m_start_nd, self.y, self.t_nd, task.mass_ref_kg,
                             task.time_ref_s, fuel, t_s)
-        return {"fuel_used_kg": fuel, "is_success": success, "altitude_m": task.altitude_m(self.y),
-                "time_s": t_s, "touchdown_speed_m_s": speed, "miss_distance_m": miss}
+        out = {"fuel_used_kg": fuel, "is_success": success, "altitude_m": task.altitude_m(self.y),
+               "time_s": t_s, "touchdown_speed_m_s": speed, "miss_distance_m": miss}
+        for k in self._extra_keys:
+            out[k] = extras[k] if extras is not None and k in extras else np.full(self.n, np.nan)
+        return out
 
     # -- physics --------------------------------------------------------------------------------
     def _powered(self, idx, y0: np.ndarray, t0: np.ndarray, controls: np.ndarray,
@@ -410,7 +423,7 @@ class LanderBatch:
             out = (np.empty_like(y0), np.empty(k), np.empty(k, dtype=np.int64), np.empty(k))
         _prepare(t0, self._dt_nd, controls, breaks, coefs)
         return integ.integrate_prepared(task.model, y0, t0, h, self._substeps, breaks, coefs,
-                                        p, task.dry_mass_nd, rs, True, parallel, out)
+                                        p, task.dry_mass_nd, rs, self._cutoff, parallel, out)
 
     def _resume(self, y0: np.ndarray, t0: float, t1: float, controls: np.ndarray,
                 p: np.ndarray):
@@ -479,12 +492,18 @@ class LanderBatch:
             self._store(idx, y_end, t_end)
             if scratch:
                 no, nan = self._no[:k], self._nan[:k]
-                return {"reward": reward, "terminated": no, "truncated": no,
-                        "touchdown_speed_m_s": nan, "miss_distance_m": nan, "is_success": no}
+                out = {"reward": reward, "terminated": no, "truncated": no,
+                       "touchdown_speed_m_s": nan, "miss_distance_m": nan, "is_success": no}
+                for key in self._extra_keys:
+                    out[key] = nan
+                return out
             nan = self._nan[:k]
-            return {"reward": reward, "terminated": np.zeros(k, dtype=bool),
-                    "truncated": np.zeros(k, dtype=bool), "touchdown_speed_m_s": nan.copy(),
-                    "miss_distance_m": nan.copy(), "is_success": np.zeros(k, dtype=bool)}
+            out = {"reward": reward, "terminated": np.zeros(k, dtype=bool),
+                   "truncated": np.zeros(k, dtype=bool), "touchdown_speed_m_s": nan.copy(),
+                   "miss_distance_m": nan.copy(), "is_success": np.zeros(k, dtype=bool)}
+            for key in self._extra_keys:
+                out[key] = nan.copy()
+            return out
         t_step_end = t0 + task.dt_nd
         burnt = ~np.isnan(t_burn)
         # A speed minimum above the cut-off speed is not an engine cut-off (the cut-off logic is
@@ -523,17 +542,19 @@ class LanderBatch:
         speed = np.full(len(y_end), np.nan)
         miss = np.full(len(y_end), np.nan)
         success = np.zeros(len(y_end), dtype=bool)
+        extras = {key: np.full(len(y_end), np.nan) for key in self._extra_keys}
         if ended.any():
             e = np.flatnonzero(ended)
-            sp, ms = task.landing_metrics(y_end[e], touched_down=touchdown[e])
-            reward[e] -= landing_penalty(sp, ms)
             td = touchdown[e]
+            sp, ms = task.landing_metrics(y_end[e], touched_down=td)
+            reward[e] -= task.terminal_penalty(y_end[e], sp, ms, td)
             speed[e[td]] = sp[td]
             if ms is not None:
                 miss[e] = ms
-            ok = td & (sp <= task.success_speed_m_s)
-            if ms is not None:
-                ok &= ms <= task.success_miss_m
+            if self._extra_keys and td.any():
+                for key, v in task.touchdown_info(y_end[e[td]]).items():
+                    extras[key][e[td]] = v
+            ok = td & task.landed_within_limits(y_end[e], sp, ms)
             success[e] = ok
             if task.charge_propellant_on_failure and not ok.all():
                 # pinpoint v1: a failed landing loses the propellant left with the vehicle
@@ -541,7 +562,8 @@ class LanderBatch:
                 reward[f] -= (y_end[f, -1] - task.dry_mass_nd) * task.mass_ref_kg \
                     / task.propellant_ref_kg
         return {"reward": reward, "terminated": touchdown, "truncated": truncated,
-                "touchdown_speed_m_s": speed, "miss_distance_m": miss, "is_success": success}
+                "touchdown_speed_m_s": speed, "miss_distance_m": miss, "is_success": success,
+                **extras}
 
     def _store(self, idx, y_end: np.ndarray, t_end: np.ndarray) -> None:
         if idx is None:  # y_end, t_end are the spare buffers: swap

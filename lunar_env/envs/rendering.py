@@ -74,7 +74,9 @@ class Renderer:
 
     def _draw_pinpoint(self, ys: np.ndarray, u) -> None:
         tr = self.task.track(ys)
-        ax1 = self.fig.add_subplot(1, 2, 1)
+        # a task whose track has the speed (the touchdown task) also gets its speed profile
+        n_panels = 3 if "speed_m_s" in tr else 2
+        ax1 = self.fig.add_subplot(1, n_panels, 1)
         ax1.plot(tr["longitude_deg"], tr["latitude_deg"], "-", color="tab:blue")
         ax1.plot(tr["longitude_deg"][-1], tr["latitude_deg"][-1], "o", color="k")
         ax1.plot(*tr["target_deg"], "x", color="tab:red", ms=10, label="target")
@@ -90,11 +92,12 @@ class Renderer:
         ax1.set_ylabel("latitude (deg)")
         ax1.set_title("ground track")
         ax1.legend(fontsize=8)
-        ax2 = self.fig.add_subplot(1, 2, 2)
+        ax2 = self.fig.add_subplot(1, n_panels, 2)
         x = tr["downrange_km"]
         ax2.plot(x, tr["altitude_km"], color="tab:blue")
         ax2.plot(x[-1], tr["altitude_km"][-1], "o", color="k")
-        ax2.axhline(tr["target_altitude_km"], color="tab:red", lw=1.0, ls="--", label="gate")
+        ax2.axhline(tr["target_altitude_km"], color="tab:red", lw=1.0, ls="--",
+                    label=tr.get("target_altitude_label", "gate"))
         ax2.axvline(tr["target_downrange_km"], color="tab:red", lw=1.0, ls=":", label="target")
         if u is not None:  # thrust in the (along-track, up) plane: (cos α cos β, sin α)
             alpha, beta = float(u[0]), float(u[1])
@@ -104,6 +107,14 @@ class Renderer:
         ax2.set_ylabel("altitude (km)")
         ax2.set_title("altitude")
         ax2.legend(fontsize=8)
+        if n_panels == 3:
+            ax3 = self.fig.add_subplot(1, n_panels, 3)
+            t = np.arange(len(ys)) * float(tr["dt_s"])
+            ax3.plot(t, tr["speed_m_s"], color="tab:blue")
+            ax3.plot(t[-1], tr["speed_m_s"][-1], "o", color="k")
+            ax3.set_xlabel("time (s)")
+            ax3.set_ylabel("speed (m/s)")
+            ax3.set_title("speed")
         self.fig.tight_layout()
 
     def _show(self, frame: np.ndarray) -> None:

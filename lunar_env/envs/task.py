@@ -30,6 +30,7 @@ from gymnasium import spaces
 
 from ..uncertainty import EpisodeErrors, UncertaintyModel, resolve_uncertainty
 from ..validation import require_bool, require_finite_positive, require_integer
+from .core import landing_penalty
 
 __all__ = ["LandingTask", "StepSettings", "fall_steps", "float_array", "box"]
 
@@ -80,7 +81,8 @@ class StepSettings:
     success_speed_m_s : float
         Largest touchdown (or gate) speed of a success (m/s).
     cutoff_speed_m_s : float
-        Speed minima at or below this cut the engine off (m/s).
+        Speed minima at or below this cut the engine off (m/s); 0: the engine never cuts off
+        at a speed minimum (a throttleable engine: stopping is the guidance law's business).
     success_miss_m : float
         Largest miss distance of a success (m); ``inf`` for a task without a target.
     """
@@ -97,12 +99,13 @@ class StepSettings:
     @classmethod
     def validated(cls, *, dt_s: float, substeps: int, time_limit_s: float | None,
                   max_fall_s: float | None, throttle_channel: bool, success_speed_m_s: float,
-                  cutoff_speed_m_s: float, default_time_limit_s: float,
+                  cutoff_speed_m_s: float | None, default_time_limit_s: float,
                   success_miss_m: float | None = None) -> StepSettings:
         """Settings from the env's keyword arguments, checked and with defaults resolved.
 
         ``time_limit_s=None`` means ``default_time_limit_s`` (s); ``max_fall_s=None`` the time
-        limit; ``success_miss_m=None`` no miss criterion (``inf``). ``substeps`` must be an
+        limit; ``success_miss_m=None`` no miss criterion (``inf``); ``cutoff_speed_m_s=None``
+        no engine cut-off at a speed minimum (stored as 0). ``substeps`` must be an
         integer >= 1 (1.7 is refused, not truncated), ``throttle_channel`` a bool (the string
         ``"no"`` is refused, not read as True), the times, speeds and ``success_miss_m``
         finite and > 0, and ``time_limit_s >= dt_s``.
@@ -115,7 +118,8 @@ class StepSettings:
         """
         dt_s = require_finite_positive("dt_s", dt_s)
         success_speed_m_s = require_finite_positive("success_speed_m_s", success_speed_m_s)
-        cutoff_speed_m_s = require_finite_positive("cutoff_speed_m_s", cutoff_speed_m_s)
+        cutoff_speed_m_s = 0.0 if cutoff_speed_m_s is None else \
+            require_finite_positive("cutoff_speed_m_s", cutoff_speed_m_s)
         miss = math.inf if success_miss_m is None else \
             require_finite_positive("success_miss_m", success_miss_m)
         substeps = require_integer("substeps", substeps, minimum=1)
@@ -219,6 +223,10 @@ class LandingTask(metaclass=_FrozenAfterInit):
     gate_range_m: float | None = None
     #: what the terminal radius ``r_stop_nd`` is, for messages
     stop_name: str = "the terminal radius"
+    #: keys the task adds to every ``info`` at touchdown (:meth:`touchdown_info`), after the
+    #: shared ones (:data:`~lunar_env.envs.core.INFO_KEYS`); each is defined only where a
+    #: lander touched down
+    extra_info_keys: tuple[str, ...] = ()
     r_stop_nd: float
     action_space: spaces.Box
     observation_space: spaces.Box
@@ -327,8 +335,16 @@ class LandingTask(metaclass=_FrozenAfterInit):
 
     @property
     def cutoff_speed_m_s(self) -> float:
-        """Speed minima at or below this cut the engine off (m/s)."""
+        """Speed minima at or below this cut the engine off (m/s); 0: no cut-off."""
         return self.settings.cutoff_speed_m_s
+
+    @property
+    def engine_cutoff(self) -> bool:
+        """The engine cuts off at a speed minimum (the integrator's ``SpeedMinimum`` event is
+        armed): the steer-only, constant-thrust vehicles of the papers. False for a
+        throttleable engine, which burns until the law throttles it or the propellant runs
+        out."""
+        return self.settings.cutoff_speed_m_s > 0.0
 
     @property
     def success_miss_m(self) -> float:
@@ -451,6 +467,37 @@ class LandingTask(metaclass=_FrozenAfterInit):
         """Terminal speed (m/s) and miss distance (m; None without a target), each (B,), of
         landers whose episode ends at states ``y``; ``touched_down`` (B,) bool says which
         reached the terminal radius (the others are charged an estimate)."""
+
+    def terminal_penalty(self, y: np.ndarray, speed_m_s: np.ndarray,
+                         miss_m: np.ndarray | None, touched_down: np.ndarray) -> np.ndarray:
+        """The landing-quality term (B,) subtracted from the last reward of episodes ending at
+        states ``y`` (B, n_state), with :meth:`landing_metrics`' ``speed_m_s`` and ``miss_m``;
+        ``touched_down`` (B,) as there. Default :func:`~lunar_env.envs.core.landing_penalty`
+        of the speed (and the miss)."""
+        return landing_penalty(speed_m_s, miss_m)
+
+    def landed_within_limits(self, y: np.ndarray, speed_m_s: np.ndarray,
+                             miss_m: np.ndarray | None) -> np.ndarray:
+        """(B,) bool: the landing at states ``y`` (B, n_state) with :meth:`landing_metrics`'
+        ``speed_m_s`` and ``miss_m`` meets the success limits (the step also requires a
+        touchdown). Default: speed <= ``success_speed_m_s`` and miss <= ``success_miss_m``."""
+        ok = speed_m_s <= self.success_speed_m_s
+        if miss_m is not None:
+            ok &= miss_m <= self.success_miss_m
+        return ok
+
+    def touchdown_info(self, y: np.ndarray) -> dict[str, np.ndarray]:
+        """The :attr:`extra_info_keys` quantities (each (B,), SI) of landers that touched down
+        at states ``y`` (B, n_state); default none."""
+        return {}
+
+    def success_thresholds(self) -> dict[str, float]:
+        """The task's own landing verdict's limits (SI): ``speed_m_s`` (largest touchdown or
+        gate speed of a success) and, for a task with a target, ``miss_m``."""
+        out = {"speed_m_s": float(self.success_speed_m_s)}
+        if self.has_target:
+            out["miss_m"] = float(self.success_miss_m)
+        return out
 
     def stop_radius(self, y: np.ndarray) -> np.ndarray:
         """Terminal radius (normalised) of each lander (B,) for the coming step. Called only

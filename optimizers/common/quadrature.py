@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["legendre_gauss", "lagrange_derivative_matrix", "gauss_differentiation_matrix"]
+__all__ = ["legendre_gauss", "lagrange_derivative_matrix", "gauss_differentiation_matrix",
+           "lagrange_interpolate"]
 
 
 def legendre_gauss(n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
@@ -59,3 +60,28 @@ def gauss_differentiation_matrix(n_nodes: int) -> np.ndarray:
     """
     tau, _ = legendre_gauss(n_nodes)
     return lagrange_derivative_matrix(np.concatenate([[-1.0], tau]))[1:, :]
+
+
+def lagrange_interpolate(nodes: np.ndarray, values: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The Lagrange polynomial through ``values`` (N, d) at distinct ``nodes`` (N,), evaluated at
+    ``x`` (n,) (barycentric formula, Berrut & Trefethen 2004); exact at the nodes.
+
+    Returns
+    -------
+    ndarray, shape (n, d)
+    """
+    nodes = np.asarray(nodes, dtype=float)
+    values = np.asarray(values, dtype=float)
+    x = np.atleast_1d(np.asarray(x, dtype=float))
+    diff = nodes[:, None] - nodes[None, :]
+    np.fill_diagonal(diff, 1.0)
+    w = 1.0 / np.prod(diff, axis=1)
+    d = x[:, None] - nodes[None, :]
+    exact = d == 0.0
+    d[exact] = 1.0
+    c = w[None, :] / d
+    out = (c @ values) / c.sum(axis=1)[:, None]
+    hit = exact.any(axis=1)
+    if hit.any():
+        out[hit] = values[np.argmax(exact[hit], axis=1)]
+    return out

@@ -8,7 +8,10 @@ convex guidance solves:
 - ``planar`` (:mod:`.planar`): Pontryagin indirect shooting;
 - ``pinpoint`` (:mod:`.pinpoint`): [001]'s serial GPM + direct shooting (cached on disk), and
   for the omniscient reference the compiled Pontryagin extremal with the direct method as
-  fallback.
+  fallback;
+- ``pinpoint_touchdown`` (:mod:`.touchdown`): the throttled landing to touchdown, certified by
+  two methods that agree (phased Legendre–Gauss collocation and Pontryagin multi-arc shooting),
+  cached on disk.
 
 Families are registered in :data:`OPTIMUM_FAMILIES` (a :class:`lunar_env.families.
 FamilyRegistry`; entry-point group ``lunar_env.optimum_families``)::
@@ -136,6 +139,8 @@ OPTIMUM_FAMILIES: FamilyRegistry[OptimumFamily] = FamilyRegistry(
     "optimum", entry_point_group="lunar_env.optimum_families")
 OPTIMUM_FAMILIES.register("planar", "optimizers.optimum.planar:PlanarOptimum")
 OPTIMUM_FAMILIES.register("pinpoint", "optimizers.optimum.pinpoint:PinpointOptimumFamily")
+OPTIMUM_FAMILIES.register("pinpoint_touchdown",
+                          "optimizers.optimum.touchdown:TouchdownOptimumFamily")
 
 
 def optimum_family(obj) -> OptimumFamily:

@@ -115,3 +115,38 @@ def test_each_family_answers_its_features_and_shaping():
         assert all(a < b for a, b in zip(lo, hi, strict=True))
         assert len(FAMILY_POTENTIALS[name]) == 1
     assert FAMILY_POTENTIALS["planar"] != FAMILY_POTENTIALS["pinpoint"]
+
+
+def test_touchdown_family_shares_the_pinpoint_frame_and_encodes_its_throttle_range():
+    """v3 (family ``pinpoint_touchdown``): the pinpoint frame (height above the site on the
+    surface), and thrust commands encoded with the throttle on the engine's [0.2, 1]."""
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401
+    from guidance.families.touchdown import TouchdownGuidance
+    from guidance.law import FlightComputer, ThrustCommand
+
+    env = gym.make("LunarPinpointLanding-v3").unwrapped
+    assert family_name(env) == "pinpoint_touchdown"
+    assert isinstance(guidance_family(env), TouchdownGuidance)
+    fc = FlightComputer.of(env, "LunarPinpointLanding-v3")
+    assert fc.throttled and fc.target_radius_m == pytest.approx(env.scenario.body.radius_m)
+    up = np.array([[0.0, 0.0, 1.0], [-1.0, 0.1, 0.2]])
+    act = fc.encode(ThrustCommand(up, np.array([0.5, 0.05])))
+    u = env.task.controls_from_actions(act)
+    assert u[0, 0] == pytest.approx(np.pi / 2, abs=1e-6) and u[0, 2] == pytest.approx(0.5)
+    assert u[1, 2] == pytest.approx(0.2)  # below the floor: the floor
+    e = env.task.thrust_direction(u)
+    np.testing.assert_allclose(e[1], up[1] / np.linalg.norm(up[1]), atol=1e-6)
+    # the observation is this frame's target-relative state: the lander relative to the site
+    env.reset(seed=0)
+    for _ in range(20):
+        env.step(np.array([0.2, 0.1, 0.3], np.float32))
+    frame = fc.frame_of(env.state_nd[None])
+    q = env.observation_quantities(env.observation_from_state(env.state_nd[None],
+                                                              np.array([env.t_s])))
+    np.testing.assert_allclose([q["along_m"][0], q["cross_m"][0], q["altitude_m"][0]],
+                               -frame.r_to_target[0], rtol=2e-6)
+    np.testing.assert_allclose([q["v_along_m_s"][0], q["v_cross_m_s"][0], q["v_up_m_s"][0]],
+                               frame.v[0], rtol=2e-6)
+    assert frame.height_m[0] == pytest.approx(q["altitude_m"][0], rel=2e-6)

@@ -24,7 +24,7 @@ INFO_KEYS = ("fuel_used_kg", "is_success", "altitude_m", "time_s", "touchdown_sp
 def test_the_registry_loop_sees_every_lander_env():
     """Guards the loops below against covering nothing (or a renamed entry point)."""
     assert {"LunarSoftLanding-v0", "LunarPinpointLanding-v0", "LunarPinpointLanding-v1",
-            "LunarPinpointLanding-v2"} <= set(LANDER_IDS)
+            "LunarPinpointLanding-v2", "LunarPinpointLanding-v3"} <= set(LANDER_IDS)
     for env_id in LANDER_IDS:
         assert gym.registry[env_id].vector_entry_point is not None, env_id
 
@@ -76,8 +76,10 @@ def test_task_implements_the_contract_and_is_frozen(env_id):
         assert isinstance(task, LandingTask) and isinstance(task.settings, StepSettings)
         assert not type(task).__abstractmethods__
         assert task.gate_range_m == venv.gate_range_m
+    # throttle_channel=True adds the channel, unless the task's engine always throttles (v3)
+    built_in = venv.task.throttle_channel
     assert env.task.throttle_channel is True and env.action_space.shape[0] == \
-        venv.single_action_space.shape[0] + 1
+        venv.single_action_space.shape[0] + (0 if built_in else 1)
     with pytest.raises(AttributeError, match="frozen"):
         env.task.dt_nd = 1.0
     with pytest.raises(AttributeError, match="frozen"):
@@ -104,7 +106,8 @@ def _actions(rng, n_steps, n_envs, dim):
 def test_single_env_and_native_vector_env_step_identically(env_id, kwargs):
     """Through terminations, truncations and NEXT_STEP autoresets, sub-env i of the native
     vector env is a single env reset with seed + i: observations, rewards, flags and every
-    info key (where defined, and undefined in the same places), bit for bit."""
+    info key, the task's own included (where defined, and undefined in the same places), bit
+    for bit."""
     n = 3
     venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
     sync = gym.vector.SyncVectorEnv([lambda: gym.make(env_id, **kwargs) for _ in range(n)],
@@ -119,7 +122,7 @@ def test_single_env_and_native_vector_env_step_identically(env_id, kwargs):
         for x, y in zip(s1[:4], s2[:4], strict=True):
             np.testing.assert_array_equal(x, y)
             assert x.dtype == y.dtype
-        for key in INFO_KEYS:
+        for key in (*INFO_KEYS, *venv.unwrapped.task.extra_info_keys):
             if key == "miss_distance_m" and not venv.unwrapped.has_target:
                 assert key not in s1[4] and key not in s2[4]
                 continue
