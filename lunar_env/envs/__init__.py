@@ -2,7 +2,8 @@
 
 - ``LunarSoftLanding-v0``: :class:`~lunar_env.envs.soft_landing.LunarSoftLandingEnv`
 - ``LunarPinpointLanding-v1``: :class:`~lunar_env.envs.pinpoint_landing.LunarPinpointLandingEnv`
-  (``-v0``: the same env with the pre-issue-16 reward, ``charge_propellant_on_failure=False``;
+  (``-v0``: the same env without the propellant charge of a failed landing,
+  ``charge_propellant_on_failure=False``;
   ``-v2``: the 2 km gate counts only within 10 km of the target, ``gate_range_m=10000``)
 - ``LunarPinpointLanding-v3``: :class:`~lunar_env.envs.pinpoint_touchdown.LunarPinpointTouchdownEnv`
   (to touchdown on the target with a throttleable engine, ``peng2012_touchdown``)
@@ -29,10 +30,10 @@ _ENVS = {
                             {}),
     "LunarPinpointLanding-v1": ("pinpoint_landing", "LunarPinpointLandingEnv",
                                 "LunarPinpointLandingVectorEnv", {}),
-    # v2: v1 with the 2 km gate counting only within 10 km of the target (issue 16)
+    # v2: v1 with the 2 km gate counting only within 10 km of the target
     "LunarPinpointLanding-v2": ("pinpoint_landing", "LunarPinpointLandingEnv",
                                 "LunarPinpointLandingVectorEnv", {"gate_range_m": 10_000.0}),
-    # v0: the reward before issue 16 (no propellant charge for a failed landing)
+    # v0: v1's reward without the propellant charge of a failed landing
     "LunarPinpointLanding-v0": ("pinpoint_landing", "LunarPinpointLandingEnv",
                                 "LunarPinpointLandingVectorEnv",
                                 {"charge_propellant_on_failure": False}),

@@ -463,7 +463,7 @@ _DOC = """
     charged the propellant left, −(propellant left)/(capacity): a failed landing loses the
     vehicle and its propellant with it.
 
-    Why (issue 16): the engine burns at constant thrust, so the fuel term is just −time, and
+    Why: the engine burns at constant thrust, so the fuel term is just −time, and
     under v0 a lander that ends its episode early by diving to the gate (α at its lower bound,
     the gate in ~110 s at ~1.5 km/s, 345 km from the target) *saved* 0.75 of return in fuel
     over any failure that kept flying, about as much as the whole spread of the saturating
@@ -502,7 +502,7 @@ _DOC = """
     radius) of the target. Elsewhere the lander may fly below 2 km and the terminal surface is
     the Moon's reference sphere (a crash, scored like a gate crossing: speed there and the miss
     of its radial projection); a lander that enters the target zone under the gate ends there.
-    Why (issue 16): [001]'s optimum cruises the last ~250 s only 300-500 m above the 2 km
+    Why: [001]'s optimum cruises the last ~250 s only 300-500 m above the 2 km
     sphere at up to 1 km/s, so under v0/v1 an error of a few hundred metres of altitude
     anywhere on the way ends the episode as a 1 km/s crash, while [001]'s problem (and a real
     descent) only ends at the gate above the target. The optimum, the observations and the
@@ -548,9 +548,9 @@ _DOC = """
 
     ## Version History
 
-    - v2: the gate ends an episode only within 10 km of the target (``gate_range_m``; issue 16,
-      see Episode End); otherwise v1.
-    - v1: an episode that ends without success is charged the propellant left (issue 16; the
+    - v2: the gate ends an episode only within 10 km of the target (``gate_range_m``; see
+      Episode End); otherwise v1.
+    - v1: an episode that ends without success is charged the propellant left (the
       dynamics, observations, actions and termination are v0's).
     - v0: initial version (``gym.make("LunarPinpointLanding-v0")`` still gives it:
       ``charge_propellant_on_failure=False``).
