@@ -106,21 +106,7 @@ def _generate(app) -> None:
 #: failing the build. Each is listed for its owner to fix; remove a name once its docstring
 #: parses. (Module, class or function names, exactly as autodoc names them.)
 VERBATIM_DOCSTRINGS: set[str] = {
-    "agents.imitation.dataset",                          # section underline, indentation
-    "agents.rl.curriculum.OptimalStartCurriculum",       # a :param: field broken over lines
-    "guidance.laws.apollo",                              # a section title with two underlines
-    "guidance.laws.apollo_specs",                        # a simple table's column overflows
-    "lunar_env.dynamics",                                # a simple table's column overflows
     "lunar_env.envs.core.LanderBatch",                   # a field list without a blank line
-    "lunar_env.states",                                  # a simple table's column overflows
-    "lunar_env.uncertainty.navigation.navigation_error",  # a field list without a blank line
-    "optimizers.common.ocp",                             # a simple table's column overflows
-    "optimizers.evolutionary.asaga.ASAGA",               # "Parameters (...)" section underline
-    "optimizers.evolutionary.ea.EA",                     # the same
-    "optimizers.evolutionary.fga.FGA",                   # the same
-    "optimizers.evolutionary.gaia.GAIA",                 # the same
-    "optimizers.evolutionary.gaia.annealed_penalty_weight",  # a definition list's indentation
-    "optimizers.transcription.gpm",                      # indentation
 }
 
 _LITERAL = re.compile(r"(``.+?``|`[^`]*`)")
@@ -137,6 +123,24 @@ def _escape_bars(line: str) -> str:
     for i in range(0, len(parts), 2):
         parts[i] = parts[i].replace("|", "\\|")
     return "".join(parts)
+
+
+def _escape_bars_outside_literals(lines: list[str]) -> list[str]:
+    """:func:`_escape_bars` on every line except those of a literal block (the indented lines
+    after a line ending in ``::``), where a backslash would be shown as it is."""
+    out: list[str] = []
+    literal_indent: int | None = None  # indentation of the line that opened a literal block
+    for line in lines:
+        indent = len(line) - len(line.lstrip())
+        if literal_indent is not None and line.strip() and indent <= literal_indent:
+            literal_indent = None
+        if literal_indent is not None:
+            out.append(line)
+            continue
+        out.append(_escape_bars(line))
+        if line.rstrip().endswith("::"):
+            literal_indent = indent
+    return out
 
 
 def _env_manual(obj) -> bool:
@@ -163,7 +167,7 @@ def _process_docstring(app, what, name, obj, options, lines):
         raw = inspect.getdoc(obj) or ""
         lines[:] = ["::", ""] + ["    " + line for line in raw.splitlines()] + [""]
         return
-    lines[:] = [_escape_bars(line) for line in lines]
+    lines[:] = _escape_bars_outside_literals(lines)
 
 
 def _env_ids() -> dict[str, list[str]]:

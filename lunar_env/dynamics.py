@@ -10,24 +10,25 @@ understand.
 All quantities here are **normalised** (suffix ``_nd`` at the API edges): μ = 1, lengths in
 units of ``Scaling.length_m``, masses in ``Scaling.mass_kg`` (see :mod:`lunar_env.scaling`).
 
-Planar polar two-body model ([000] Zhu & Xu 2007, eq. (1)–(5); [003]; with heliocentric
-constants [002])
----------------------------------------------------------------------------------------------
+Planar polar two-body model ([000] Zhu & Xu 2007, eq. (1)–(5); [003]; [002])
+-----------------------------------------------------------------------------
 
-======  ========  =========================================  ================
-index   symbol    meaning                                    unit (normalised)
-======  ========  =========================================  ================
-``R``      r      radius from the body's centre              L
-``VR``     v      radial velocity                            sqrt(μ/L)
-``THETA``  θ      polar angle (downrange), from Oy           rad
-``OMEGA``  ω      angular rate dθ/dt                          sqrt(μ/L³)
-``M``      m      mass                                       m_ref
-======  ========  =========================================  ================
+With heliocentric constants, the same model is [002]'s Earth–Mars transfer.
+
+=========  ======  ================================  =================
+index      symbol  meaning                           unit (normalised)
+=========  ======  ================================  =================
+``R``      r       radius from the body's centre     L
+``VR``     v       radial velocity                   sqrt(μ/L)
+``THETA``  θ       polar angle (downrange), from Oy  rad
+``OMEGA``  ω       angular rate dθ/dt                sqrt(μ/L³)
+``M``      m       mass                              m_ref
+=========  ======  ================================  =================
 
 Control: ``PHI`` φ (rad), thrust angle to the local horizontal, positive when the thrust has an
 upward radial component; cos φ > 0 brakes the horizontal motion (thrust opposes the direction
 of motion, [000]). ``THROTTLE`` ∈ [0, 1] multiplies the maximum thrust (paper 000's engine is
-"constant or 0"; paper 003 varies the magnitude).
+"constant or 0"; paper 003 varies the magnitude)::
 
     r' = v
     v' = (F/m) sin φ − 1/r² + r ω²
@@ -39,7 +40,7 @@ of motion, [000]). ``THROTTLE`` ∈ [0, 1] multiplies the maximum thrust (paper 
 ------------------------------------------------------
 
 The paper's spherical equations (eq. 11) are singular at the poles and OCR-garbled; we
-integrate the vector equation they come from,
+integrate the vector equation they come from::
 
     dV/dt = F/m − μ r/|r|³ − 2 Ω × V − Ω × (Ω × r),
 

@@ -520,18 +520,18 @@ class TouchdownScenario(PinpointScenario):
     landing surface (``target.altitude_m`` is the height of the site above the reference sphere,
     0 on it), and the engine throttles between ``throttle_min`` and 1 of ``vehicle.thrust_n``.
 
+    The family differs from ``"pinpoint"``: the per-case optimum is another problem (minimum
+    propellant with the throttle's max–min–max arcs, not [001]'s constant-thrust minimum time)
+    and a thrust command's throttle maps onto [throttle_min, 1], so the optimum and the
+    guidance encoder of the family are their own (:mod:`optimizers.optimum.touchdown`,
+    :mod:`guidance.families.touchdown`).
+
     Attributes
     ----------
     throttle_min : float
         Lowest throttle of the running engine, a fraction of ``vehicle.thrust_n`` in (0, 1):
         the engine is lit for the whole descent and throttles in [throttle_min, 1] (it stops
         only when the propellant is exhausted).
-
-    The family differs from ``"pinpoint"``: the per-case optimum is another problem (minimum
-    propellant with the throttle's max–min–max arcs, not [001]'s constant-thrust minimum time)
-    and a thrust command's throttle maps onto [throttle_min, 1], so the optimum and the
-    guidance encoder of the family are their own (:mod:`optimizers.optimum.touchdown`,
-    :mod:`guidance.families.touchdown`).
     """
 
     throttle_min: float = 0.2

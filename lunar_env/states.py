@@ -7,15 +7,15 @@ live here, so no other module indexes a state row by a bare number or re-derives
 Planar SI row (papers 000, 002, 003)
 ------------------------------------
 
-=====================  ============  ====================================================
-index                  unit          meaning
-=====================  ============  ====================================================
-``SI_RADIUS``          m             radius from the body's centre
-``SI_RADIAL_VELOCITY`` m/s           radial velocity
-``SI_THETA``           rad           polar angle (downrange)
-``SI_TANGENTIAL``      m/s           tangential velocity r·ω (positive along the motion)
-``SI_MASS``            kg            mass
-=====================  ============  ====================================================
+======================  ====  ===================================================
+index                   unit  meaning
+======================  ====  ===================================================
+``SI_RADIUS``           m     radius from the body's centre
+``SI_RADIAL_VELOCITY``  m/s   radial velocity
+``SI_THETA``            rad   polar angle (downrange)
+``SI_TANGENTIAL``       m/s   tangential velocity r·ω (positive along the motion)
+``SI_MASS``             kg    mass
+======================  ====  ===================================================
 
 The normalised planar row is (r, v, θ, ω, m) with the indices of :mod:`lunar_env.dynamics`
 (``R, VR, THETA, OMEGA, M``): note ω, not r·ω, in the fourth slot.

@@ -19,7 +19,7 @@ Pipeline
    evaluation set, so the evaluation states are held out).
 2. Solver: :func:`optimizers.indirect.batch.solve_many` (indirect shooting, each solve warm-started
    from its nearest neighbour in the chain). Decision (measured, not assumed): it is the fastest
-   certified solver available here — ~12–19 ms per state serial on this loaded machine. A
+   certified solver available here — ~12–19 ms per state serial on a shared 2-core machine. A
    backward propagation of the state–costate system from the terminal set (CasADi, ``simpleRK``,
    batched chord/Broyden iterations on the terminal unknowns to hit the requested initial
    states) was prototyped and took ~20–30 ms per state for the same accuracy, so it was not
@@ -52,21 +52,22 @@ shards in flight; a damaged shard is moved aside to ``.damaged`` and solved agai
 identity of the store must match or the run refuses to mix data.
 The finished shards are merged into ``<out>``.
 
-File format (``FORMAT_VERSION`` = 1; ``numpy.savez_compressed``)
----------------------------------------------------------------
-``meta`` : 0-d str, JSON: ``format_version``, ``env_id``, ``env_kwargs``, ``scenario``, ``seed``,
-    ``n_trajectories``, ``dt_s``, ``label_rule``, ``solver`` (name, n_steps, check),
-    ``certification`` (tolerances), ``observation_names``, ``wall_s`` (generation), ...
-Per sample (M rows):
-``observations`` (M, n_obs) float32; ``actions`` (M, n_act) float32 (env action space);
-``traj_index`` (M,) int64; ``t_s`` (M,) float64; ``state_nd`` (M, 5) float64 (normalised
-    (r, vr, θ, ω, m)); ``phi_rad`` (M,) float64 (the label's thrust angle).
-Per trajectory (N rows):
-``initial_state_si`` (N, 5) (r m, vr m/s, θ rad, v_t m/s, m kg); ``solver_success`` (N,) bool;
-``fuel_kg``, ``tf_s`` (N,) (optimum; NaN when the solve failed); ``terminal_error_radius_m``,
-``terminal_error_speed_m_s`` (N,); ``replay_fuel_kg``, ``replay_touchdown_speed_m_s`` (N,),
-``replay_success`` (N,) bool; ``replay_fuel_gap_kg`` (N,); ``certified`` (N,) bool;
-``solve_wall_s`` (N,).
+File format
+-----------
+``FORMAT_VERSION`` = 1, written by ``numpy.savez_compressed``:
+
+- ``meta``: 0-d str, JSON: ``format_version``, ``env_id``, ``env_kwargs``, ``scenario``,
+  ``seed``, ``n_trajectories``, ``dt_s``, ``label_rule``, ``solver`` (name, n_steps, check),
+  ``certification`` (tolerances), ``observation_names``, ``wall_s`` (generation), ...
+- per sample (M rows): ``observations`` (M, n_obs) float32; ``actions`` (M, n_act) float32
+  (env action space); ``traj_index`` (M,) int64; ``t_s`` (M,) float64; ``state_nd`` (M, 5)
+  float64 (normalised (r, vr, θ, ω, m)); ``phi_rad`` (M,) float64 (the label's thrust angle);
+- per trajectory (N rows): ``initial_state_si`` (N, 5) (r m, vr m/s, θ rad, v_t m/s, m kg);
+  ``solver_success`` (N,) bool; ``fuel_kg``, ``tf_s`` (N,) (optimum; NaN when the solve
+  failed); ``terminal_error_radius_m``, ``terminal_error_speed_m_s`` (N,); ``replay_fuel_kg``,
+  ``replay_touchdown_speed_m_s`` (N,), ``replay_success`` (N,) bool; ``replay_fuel_gap_kg``
+  (N,); ``certified`` (N,) bool; ``solve_wall_s`` (N,).
+
 Only certified trajectories contribute samples.
 """
 

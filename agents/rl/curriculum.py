@@ -56,9 +56,8 @@ def optimal_start_pool(scenario, n_trajectories: int, seed: int, n_points: int =
 class OptimalStartCurriculum(VecEnvWrapper):
     """Start a share of the episodes from states on optimal trajectories (see module docstring).
 
-    :param venv: an :class:`agents.common.vec_env.LanderSB3VecEnv` of ``LunarSoftLanding-v0`` (it
-    must
-        be the innermost env: the wrapper sets the native batch's state).
+    :param venv: an :class:`agents.common.vec_env.LanderSB3VecEnv` of ``LunarSoftLanding-v0``
+        (it must be the innermost env: the wrapper sets the native batch's state).
     :param total_timesteps: training length; ``p`` reaches 0 at ``anneal_fraction`` of it.
     :param start_prob: ``p`` at the start of training.
     :param anneal_fraction: fraction of training over which ``p`` decays linearly to 0.

@@ -9,7 +9,6 @@ flies every env family.
 
 How an acceleration law flies a constant-thrust engine
 ------------------------------------------------------
----------------------------------------------------------------------------
 The envs' default engine burns at full thrust T and can only be steered, as the papers'
 vehicles. The law thrusts along its commanded thrust acceleration and chooses t_go at every
 decision so that the command's magnitude *equals* T/m (``tgo=matched``, the default:

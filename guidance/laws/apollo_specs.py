@@ -14,19 +14,19 @@ Syntax (``NAME[:KEY=VALUE,...]``, no argument)::
 
 Options of ``apollo`` / ``zem-zev``:
 
-=============  ==============================================================  ==========
-key            meaning                                                         default
-=============  ==============================================================  ==========
-``kr``         gain k_r ∈ [6, 24]                                              12 / 6
-``tgo_margin`` μ in t_go = (1 + μ)·t_rule, ∈ [−0.5, 1]                          0
-``lead``       lead time τ (s) ∈ [0, 10] (Luminary: 2.2)                       0
-``tgo``        t_go rule (:data:`~guidance.laws.apollo.TGO_RULES`)     matched
-               (``countdown`` on a throttled engine)
-``rotation``   1/0: the Moon's rotation terms in the known acceleration (3D)   1
-``terminal``   constant thrust: t_go (s) ∈ [0, 60] below which the law thrusts  0 (off)
-               against the velocity (gravity-turn finish)
-``aim``        aim point (m) ∈ [0, 100] above the terminal surface             0
-=============  ==============================================================  ==========
+==============  =============================================================  =======
+key             meaning                                                        default
+==============  =============================================================  =======
+``kr``          gain k_r ∈ [6, 24]                                             12 / 6
+``tgo_margin``  μ in t_go = (1 + μ)·t_rule, ∈ [−0.5, 1]                        0
+``lead``        lead time τ (s) ∈ [0, 10] (Luminary: 2.2)                      0
+``tgo``         t_go rule (:data:`~guidance.laws.apollo.TGO_RULES`)            matched
+                (``countdown`` on a throttled engine)
+``rotation``    1/0: the Moon's rotation terms in the known acceleration (3D)  1
+``terminal``    constant thrust: t_go (s) ∈ [0, 60] below which the law        0 (off)
+                thrusts against the velocity (gravity-turn finish)
+``aim``         aim point (m) ∈ [0, 100] above the terminal surface            0
+==============  =============================================================  =======
 
 ``gravity-turn`` takes ``rotation`` only. The engine (constant thrust or throttled) is the
 env's: ``throttle_channel`` in the env keyword arguments.

@@ -110,6 +110,9 @@ def navigation_error(z, zt, i, altitude_m, bias_p, bias_v, t_frac, t_floor, t_ve
     """Lander i's navigation errors (position up, downrange, crossrange (m), velocity up,
     downrange, crossrange (m/s)) as a 6-tuple, at true altitude ``altitude_m``.
 
+    Above the acquisition altitude the errors are the inertial solution's alone, bias + σ·z,
+    the arithmetic of a model without terminal sensors.
+
     Parameters
     ----------
     z : ndarray, shape (2 · n_axes, n)
@@ -130,9 +133,6 @@ def navigation_error(z, zt, i, altitude_m, bias_p, bias_v, t_frac, t_floor, t_ve
         :meth:`~lunar_env.uncertainty.UncertaintyModel.navigation_constants` of the model.
     n_axes : int
         2 leaves the crossrange errors 0 (``z`` then needs only 4 rows); 3 for a 3D task.
-
-    Above the acquisition altitude the errors are the inertial solution's alone, bias + σ·z,
-    the arithmetic of a model without terminal sensors.
     """
     p0 = bias_p[i, 0] + z[0, i] * c[0]
     v0 = bias_v[i, 0] + z[1, i] * c[3]

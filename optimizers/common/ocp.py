@@ -10,19 +10,19 @@ reports, so success is decided by the problem, not by the solver.
 
 The symbolic members evaluate on CasADi symbols (``casadi.SX``/``MX``):
 
-=================================  =====================================================
-member                             meaning
-=================================  =====================================================
-``n_state``, ``n_control``         sizes of x and of the steered control u
-``rhs(x, u)``                      dx/dt from the shared right-hand side
-``initial_state``                  fixed x(t0 = 0), ndarray (n_state,)
-``terminal_residual(xf)``          vector that is 0 at an admissible final state
-``path_constraints(x, u)``         ``(expr, lower, upper)`` or None, imposed at nodes
+===================================  ==================================================
+member                               meaning
+===================================  ==================================================
+``n_state``, ``n_control``           sizes of x and of the steered control u
+``rhs(x, u)``                        dx/dt from the shared right-hand side
+``initial_state``                    fixed x(t0 = 0), ndarray (n_state,)
+``terminal_residual(xf)``            vector that is 0 at an admissible final state
+``path_constraints(x, u)``           ``(expr, lower, upper)`` or None, imposed at nodes
 ``control_lower``/``control_upper``  bounds on u, ndarray (n_control,)
-``state_bounds()``                 (lower, upper), each (n_state,)
-``tf_bounds_nd``                   (low, high) of the free final time
-``objective(xf, tf)``              Mayer cost to minimise
-=================================  =====================================================
+``state_bounds()``                   (lower, upper), each (n_state,)
+``tf_bounds_nd``                     (low, high) of the free final time
+``objective(xf, tf)``                Mayer cost to minimise
+===================================  ==================================================
 """
 
 from __future__ import annotations

@@ -48,7 +48,9 @@ class ASAGA(EvolutionaryAlgorithm):
     4. Elitism: a randomly chosen child is replaced by the best individual recorded in 1.
     5. Cool and repeat until Tmax.
 
-    Parameters (defaults are the paper's settings, [000] §5)
+    The defaults are the paper's settings ([000] §5).
+
+    Parameters
     ----------
     n_pop : int
         Population size M (20).
@@ -107,8 +109,10 @@ class ASAGA(EvolutionaryAlgorithm):
     As a pygmo algorithm: ``pygmo.algorithm(ASAGA()).evolve(pop)`` with
     ``pop = pygmo.population(problem.to_pygmo(), size=20)``.
 
-    Decisions where the paper is silent or ambiguous
-    ------------------------------------------------
+    Notes
+    -----
+    Decisions where the paper is silent or ambiguous:
+
     - *Generation counter.* T runs 1 … Tmax, so T_i = T0 at the first generation (eq. 19) and
       δ = 0.5 then (its maximum, §5).
     - *Crossover* (eq. 12): one pair of scalars α, β ~ U(0, r) per pair and attempt, applied to

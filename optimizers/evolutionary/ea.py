@@ -38,7 +38,9 @@ class EA(EvolutionaryAlgorithm):
     4. Stop when |f(P+1) − f(P)| < ε (f the best cost of a generation) or P = P_max (80).
     5. The answer is the best individual.
 
-    Parameters (defaults are the paper's settings, [004] §3)
+    The defaults are the paper's settings ([004] §3).
+
+    Parameters
     ----------
     n_parents : int
         λ, the population kept by the selection; also the initial population N (50).
@@ -60,8 +62,10 @@ class EA(EvolutionaryAlgorithm):
     verbose, progress_bar
         As :class:`~.base.EvolutionaryAlgorithm`.
 
-    Decisions where the paper is silent or ambiguous
-    ------------------------------------------------
+    Notes
+    -----
+    Decisions where the paper is silent or ambiguous:
+
     - *λ and μ.* The paper keeps "the best N (the initial population size)" and sets λ = 50,
       μ = 150 with N = 50; so λ is the number of survivors (parents) and μ the number of
       children per generation — the reverse of the usual (μ+λ) letters. 12 050 evaluations

@@ -32,7 +32,9 @@ class FGA(EvolutionaryAlgorithm):
     random and cross each pair with probability Pc; (5) mutate every parameter of every
     individual with probability Pm; (6) repeat until the stop condition (10 000 generations).
 
-    Parameters (defaults are the paper's settings, [003] §3)
+    The defaults are the paper's settings ([003] §3).
+
+    Parameters
     ----------
     n_pop : int
         Population size N (20).
@@ -66,8 +68,10 @@ class FGA(EvolutionaryAlgorithm):
 
     As a pygmo algorithm: ``pygmo.algorithm(FGA()).evolve(pop)`` with a population of 20.
 
-    Decisions where the paper is silent
-    -----------------------------------
+    Notes
+    -----
+    Decisions where the paper is silent:
+
     - *Performance index with constraints.* The paper sorts by "the performance index" and
       does not say how the 6 boundary equalities enter; the index is the penalised objective
       ``fuel + w·Σ groups`` of :func:`~optimizers.common.penalties.penalised_fitness`

@@ -31,13 +31,13 @@ def annealed_penalty_weight(generation: int, n_generations: int, *, beta: float 
     maxed with 1 "so that early in the search the weight does not lose its constraining role
     by being too small" — so the curve itself starts *below* 1 and grows. Readings:
 
-    ``"rising"`` (default, this project's reading): σ = max(1, T_λ·β^(−g/g_max)). The curve
-        starts at T_λ = 0.1 < 1 (so the max with 1 acts early, as the text says), the rate is
-        set by β and the final value T_λ/β = 20 by T_λ and β. σ = 1 until g = 0.435 g_max.
-    ``"inverse"``: σ = max(1, 1/(T_λ·β^(g/g_max))) (the reading suggested in the project's
-        digest of the paper): the weight is the inverse of the temperature T_λβ^(g/g_max),
-        10 → 2000; the max with 1 never acts.
-    ``"constant"``: σ = 1 throughout (the floor alone; the control case).
+    - ``"rising"`` (default, this project's reading): σ = max(1, T_λ·β^(−g/g_max)). The curve
+      starts at T_λ = 0.1 < 1 (so the max with 1 acts early, as the text says), the rate is
+      set by β and the final value T_λ/β = 20 by T_λ and β. σ = 1 until g = 0.435 g_max.
+    - ``"inverse"``: σ = max(1, 1/(T_λ·β^(g/g_max))) (the reading suggested in the project's
+      digest of the paper): the weight is the inverse of the temperature T_λβ^(g/g_max),
+      10 → 2000; the max with 1 never acts.
+    - ``"constant"``: σ = 1 throughout (the floor alone; the control case).
 
     Returns
     -------
@@ -85,7 +85,9 @@ class GAIA(EvolutionaryAlgorithm):
     f_b − 0.01|f_b| in the second half ("0.99 f_b", G large: local search), updated only in
     generations where f_b increased ("if f_b no longer increases, f0 stays unchanged").
 
-    Parameters (defaults: [002] §5)
+    The defaults are the paper's settings ([002] §5).
+
+    Parameters
     ----------
     n_pop : int
         Population n (100).

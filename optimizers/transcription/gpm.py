@@ -21,16 +21,16 @@ inequalities; phase 2 minimises the true objective from the phase-1 point.
 Problem: an :class:`optimizers.common.ocp.OCP` (e.g. :class:`optimizers.problems.pinpoint.
 PinpointOCP`); the transcription uses:
 
-``n_state``, ``n_control`` : int
-``rhs(x, u)`` : CasADi right-hand side (from the shared dynamics core)
-``initial_state`` : ndarray (n_state,), fixed X_0 (an NLP parameter, so it can change without
-    rebuilding)
-``terminal_residual(xf)`` : CasADi vector, = 0 at the end
-``path_constraints(x, u)`` : (expr, lower (m,), upper (m,)) or None
-``control_lower``, ``control_upper`` : ndarray (n_control,)
-``state_bounds()`` : (lower, upper), each (n_state,)
-``tf_bounds_nd`` : (float, float)
-``objective(xf, tf)`` : CasADi scalar to minimise (Mayer form)
+- ``n_state``, ``n_control``: int;
+- ``rhs(x, u)``: CasADi right-hand side (from the shared dynamics core);
+- ``initial_state``: ndarray (n_state,), fixed X_0 (an NLP parameter, so it can change without
+  rebuilding);
+- ``terminal_residual(xf)``: CasADi vector, = 0 at the end;
+- ``path_constraints(x, u)``: (expr, lower (m,), upper (m,)) or None;
+- ``control_lower``, ``control_upper``: ndarray (n_control,);
+- ``state_bounds()``: (lower, upper), each (n_state,);
+- ``tf_bounds_nd``: (float, float);
+- ``objective(xf, tf)``: CasADi scalar to minimise (Mayer form).
 """
 
 from __future__ import annotations

@@ -34,6 +34,13 @@ def fenced_blocks(path: Path) -> list[tuple[str, str, bool]]:
     return out
 
 
+def shell_commands(body: str) -> list[str]:
+    """The commands of a shell block, one per logical line (continuation lines joined; blank
+    lines and comment lines left out)."""
+    return [c for c in body.replace("\\\n", " ").splitlines()
+            if c.strip() and not c.lstrip().startswith("#")]
+
+
 class _Links(HTMLParser):
     def __init__(self) -> None:
         super().__init__()

@@ -13,9 +13,10 @@ import check_product_words as cpw  # noqa: E402
 
 
 def test_docs_are_clean():
-    """The docs, their tests and the tools (``.ci/run`` checks the same; the whole product
-    joins once every owner's files are clean)."""
-    paths = [DOCS, ROOT / "tests" / "docs", ROOT / "tools"]
+    """The README, the changelog, the docs, their tests and the tools, through the checker's
+    command line (``tests/test_product_words.py`` checks the whole product)."""
+    paths = [ROOT / "README.md", ROOT / "CHANGELOG.md", DOCS, ROOT / "tests" / "docs",
+             ROOT / "tools"]
     r = subprocess.run([sys.executable, str(ROOT / "tools" / "check_product_words.py"),
                         *map(str, paths)], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, f"process words in the docs:\n{r.stdout}"
@@ -35,6 +36,8 @@ def test_the_words_are_found():
     assert _labels("a rev" + "iew round") == [cpw.WORDS[2][0]]
     assert _labels("measured at lo" + "ad 5-6") == [cpw.WORDS[4][0]]
     assert _labels("doc" + "s/notes/x.md") == ["research log"]
+    assert _labels("research" + "/notes/x.md") == ["research log"]
+    assert _labels("the la" + "st session") == ["development round"]
 
 
 def test_clean_text_is_not_flagged():

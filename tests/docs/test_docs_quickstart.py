@@ -1,6 +1,7 @@
 """The quickstart page runs: its Python blocks (in one interpreter, in order, as a reader types
 them) and its shell blocks (the slow twin: each job at a smoke-test size), from a scratch
-directory. A block marked ``<!-- not run by tests/docs: why -->`` is set-up that needs the
+directory; the slow twin runs the README's shell blocks too (its quick tour, at the same
+sizes). A block marked ``<!-- not run by tests/docs: why -->`` is set-up that needs the
 network and a fresh virtual environment; ``.ci/run`` runs those commands itself."""
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from docs_helpers import DOCS, ROOT, SKIP_MARK, fenced_blocks
+from docs_helpers import DOCS, ROOT, SKIP_MARK, fenced_blocks, shell_commands
 
 PAGE = DOCS / "quickstart.md"
 
@@ -50,15 +51,16 @@ def test_quickstart_python_blocks_run(tmp_path):
 
 
 @pytest.mark.slow
-def test_quickstart_shell_blocks_run(tmp_path):
+@pytest.mark.parametrize("page", [PAGE, ROOT / "README.md"], ids=["quickstart", "README"])
+def test_shell_blocks_run(tmp_path, page):
     (tmp_path / "train.py").symlink_to(ROOT / "train.py")
     (tmp_path / "examples").symlink_to(ROOT / "examples")
-    blocks = [body for lang, body, skipped in fenced_blocks(PAGE)
+    blocks = [body for lang, body, skipped in fenced_blocks(page)
               if lang == "bash" and not skipped]
     assert blocks
     for body in blocks:
-        for command in [c for c in body.splitlines() if c.strip() and not c.startswith("#")]:
+        for command in shell_commands(body):
             r = subprocess.run(["bash", "-euo", "pipefail", "-c", command], cwd=tmp_path,
                                env=_env(), capture_output=True, text=True, timeout=3600)
-            assert r.returncode == 0, (f"quickstart command failed: {command}\n"
+            assert r.returncode == 0, (f"{page.name} command failed: {command}\n"
                                        f"{r.stdout[-3000:]}\n{r.stderr[-3000:]}")
