@@ -136,7 +136,11 @@ def test_touchdown_family_shares_the_pinpoint_frame_and_encodes_its_throttle_ran
     u = env.task.controls_from_actions(act)
     assert u[0, 0] == pytest.approx(np.pi / 2, abs=1e-6) and u[0, 2] == pytest.approx(0.5)
     assert u[1, 2] == pytest.approx(0.2)  # below the floor: the floor
-    e = env.task.thrust_direction(u)
+    # the thrust direction the dynamics fly, (radial, along, cross) -> (along, cross, up)
+    from lunar_env.dynamics import moon3d_thrust_terms
+
+    e_r, e_t, e_n, _ = moon3d_thrust_terms(u[:, 0], u[:, 1], 1.0)
+    e = np.stack([e_t, e_n, e_r], axis=1)
     np.testing.assert_allclose(e[1], up[1] / np.linalg.norm(up[1]), atol=1e-6)
     # the observation is this frame's target-relative state: the lander relative to the site
     env.reset(seed=0)
