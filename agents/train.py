@@ -6,6 +6,8 @@
                                                       # then the comparison table vs the optimum
     python train.py --quick                           # the few-thousand-step CI configuration
     python train.py --algo sac --env LunarPinpointLanding-v0 --seed 3
+    python train.py --algo recurrent-ppo --env LunarPinpointLanding-v2   # LSTM policy (sb3-contrib)
+    python train.py --env LunarPinpointLanding-v2 --history 8     # last 8 inputs and actions
     python train.py -n 200000 --hyperparams n_steps=512 policy_kwargs.activation_fn=relu
     python train.py --resume runs/ppo/LunarSoftLanding-v0_1   # continue an interrupted run
     python train.py --optimize --n-trials 40 -n 500000         # Optuna search (agents.rl.search)
@@ -28,6 +30,12 @@ re-applied
 by :class:`agents.laws.SB3Law` when a run is loaded) and ``reward_shaping``
 (potential-based, policy-invariant, training only, :mod:`agents.rl.shaping`). The env's own
 observation and reward are never changed.
+
+Memory: ``--algo recurrent-ppo`` trains sb3-contrib's ``RecurrentPPO`` (an LSTM policy; the
+``memory`` extra; :mod:`agents.common.recurrent`) from ``agents/hyperparams/recurrent-ppo.yml``;
+``history: k`` (YAML) or ``--history k`` gives any policy its last k inputs and actions
+(:mod:`agents.features.history`). Both are recorded in the run and restored when it is loaded
+as a law (:class:`agents.laws.SB3Law`), by the evaluation and by campaigns.
 
 Training runs on the natively batched vector env (all landers stepped in one call of the dynamics
 core) through the SB3 adapter :func:`agents.common.vec_env.make_sb3_vec_env`, not on a
@@ -64,6 +72,7 @@ from agents.common.runs import (
     resumable_checkpoint,
     write_text_atomic,
 )
+from agents.features.history import MAX_HISTORY, validate_history
 from agents.hyperparams import (
     ALGOS,
     apply_overrides,
@@ -114,6 +123,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override n_timesteps")
     p.add_argument("--n-envs", type=count_type(1, MAX_WORKERS), default=None,
                    help="override n_envs")
+    p.add_argument("--history", type=count_type(1, MAX_HISTORY), default=None, metavar="K",
+                   help=f"give the policy its last K inputs and actions, 1 to {MAX_HISTORY} "
+                        "(overrides the entry's history)")
     p.add_argument("--seed", type=count_type(0, MAX_SB3_SEED), default=None,
                    help=f"random seed, 0 to {MAX_SB3_SEED} (default: drawn and recorded in "
                         "args.yml)")
@@ -194,6 +206,8 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
         overrides["n_timesteps"] = args.n_timesteps
     if args.n_envs is not None:
         overrides["n_envs"] = args.n_envs
+    if args.history is not None:
+        overrides["history"] = args.history
     hp = apply_overrides(hp, overrides)
     for key in ("n_timesteps", "n_envs"):
         if key not in hp:
@@ -223,6 +237,9 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
         from agents.features import validate_features
 
         validate_features(hp["obs_features"])
+    hp["history"] = validate_history(hp.get("history"))
+    if hp["history"] is None:
+        del hp["history"]  # a run without history records none
     run = dict(vars(args))
     run["config"] = profile
     if run["eval_states"] is None:

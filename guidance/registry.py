@@ -12,8 +12,8 @@ A *law spec* is a short string, ``NAME[:ARG][:KEY=VALUE[,KEY=VALUE...]]``::
     apollo:kr=10,tgo_margin=0.02,lead=2.2   a law with options (syntax and options of the
                                             explicit laws: :mod:`guidance.laws.apollo_specs`)
     convex:every=2,nodes=40                 SCvx re-planning every 2 s on 40 nodes
-    ppo:runs/ppo/LunarSoftLanding-v0_1      a trained SB3 run (ppo, sac, td3, bc, dagger;
-                                            registered by :mod:`agents.laws`)
+    ppo:runs/ppo/LunarSoftLanding-v0_1      a trained SB3 run (ppo, sac, td3, recurrent-ppo, bc,
+                                            dagger; registered by :mod:`agents.laws`)
 
 A part with ``=`` holds options (``key=value`` pairs, comma-separated); a part without is the
 law's argument (a path).

@@ -35,7 +35,7 @@ from optimizers.common.processes import exit_with_parent
 __all__ = ["CKPT_RE", "next_run_dir", "claim_run_dir", "run_dir_of", "read_run", "checkpoints",
            "latest_checkpoint", "resumable_checkpoint", "trained_files", "load_trained",
            "write_text_atomic", "save_model_atomic", "save_vecnormalize_atomic", "algo_class",
-           "newest_loadable", "exit_with_parent", "MAX_SB3_SEED"]
+           "newest_loadable", "exit_with_parent", "MAX_SB3_SEED", "ALGO_NAMES"]
 
 CKPT_RE = re.compile(r"^rl_model_(\d+)_steps\.zip$")
 #: largest seed of a training run: SB3 seeds numpy's global generator (``np.random.seed``
@@ -43,14 +43,31 @@ CKPT_RE = re.compile(r"^rl_model_(\d+)_steps\.zip$")
 MAX_SB3_SEED = 2**31 - 1
 
 
+#: the algorithms of a run (``--algo``) in the order the command line lists them
+ALGO_NAMES = ("ppo", "sac", "td3", "recurrent-ppo")
+
+
 def algo_class(algo: str):
-    """The SB3 class of ``algo`` ("ppo", "sac", "td3")."""
+    """The SB3 class of ``algo`` (one of :data:`ALGO_NAMES`).
+
+    ``"recurrent-ppo"`` is :class:`agents.common.recurrent.RecurrentPPO` (sb3-contrib's LSTM
+    PPO), imported only here: without sb3-contrib installed it raises Gymnasium's
+    ``DependencyNotInstalled`` naming the ``memory`` extra, and the other algorithms work.
+
+    Raises
+    ------
+    ValueError
+        An algorithm not in :data:`ALGO_NAMES`.
+    """
+    if algo not in ALGO_NAMES:
+        raise ValueError(f"algo = {algo!r}; allowed: {list(ALGO_NAMES)}")
+    if algo == "recurrent-ppo":
+        from agents.common.recurrent import RecurrentPPO
+
+        return RecurrentPPO
     from stable_baselines3 import PPO, SAC, TD3
 
-    classes = {"ppo": PPO, "sac": SAC, "td3": TD3}
-    if algo not in classes:
-        raise ValueError(f"algo = {algo!r}; allowed: {sorted(classes)}")
-    return classes[algo]
+    return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
 
 
 # ----------------------------------------------------------------------------- writing
@@ -327,7 +344,11 @@ def load_trained(run_dir_or_model: str | Path, env=None, device: str = "cpu"):
     if algo is None:
         with zipfile.ZipFile(model_path) as zf:
             data = zf.read("data").decode()
-        algo = "sac" if '"log_ent_coef"' in data else ("td3" if "target_policy_noise" in data
-                                                        else "ppo")
+        # a model without its run files: the algorithm from what its saved data holds
+        if "RecurrentActorCriticPolicy" in data or "LstmPolicy" in data:
+            algo = "recurrent-ppo"
+        else:
+            algo = "sac" if '"log_ent_coef"' in data else ("td3" if "target_policy_noise" in data
+                                                            else "ppo")
     model = algo_class(algo).load(model_path, env=env, device=device)
     return model, vn_path, algo

@@ -1,7 +1,8 @@
 """Hyperparameters in the RL Baselines3 Zoo layout, read without evaluating any string.
 
-The files ``ppo.yml``, ``sac.yml`` and ``td3.yml`` in this package are keyed by env id, one tuned
-entry per id, exactly like ``rl-baselines3-zoo/hyperparams/<algo>.yml``::
+The files ``ppo.yml``, ``sac.yml``, ``td3.yml`` and ``recurrent-ppo.yml`` in this package are
+keyed by env id, one tuned entry per id, exactly like
+``rl-baselines3-zoo/hyperparams/<algo>.yml``::
 
     LunarSoftLanding-v0:
       n_envs: 16
@@ -34,12 +35,16 @@ Python objects are given by name and resolved from a fixed table:
 
 Keys that are not algorithm arguments (``n_envs``, ``n_timesteps``, ``policy``, ``normalize``,
 ``noise_type``, ``noise_std``, ``env_kwargs``, ``curriculum``, ``obs_features``,
-``reward_shaping``) are taken out before the
-algorithm is built. ``curriculum`` is a mapping of :class:`agents.rl.curriculum.
-OptimalStartCurriculum` arguments (``start_prob``, ``anneal_fraction``, ``n_trajectories``,
-...), or absent. ``added_action_init`` (``{action: [...], log_std: [...]}``) says how a run
-started by ``--init-from`` fills the action channels its initial policy lacks, e.g. a throttle
-channel (:func:`agents.rl.training.widen_action_head`).
+``reward_shaping``, ``history``, ...: :data:`RUN_KEYS`) are taken out before the
+algorithm is built. ``history: k`` gives the policy the last k observations and actions
+(:mod:`agents.features.history`); a recurrent policy (``recurrent-ppo``) keeps its own memory
+and its ``policy_kwargs`` hold sb3-contrib's ``lstm_hidden_size``, ``n_lstm_layers``,
+``shared_lstm`` and ``enable_critic_lstm``. ``curriculum`` is a mapping of
+:class:`agents.rl.curriculum.OptimalStartCurriculum` arguments (``start_prob``,
+``anneal_fraction``, ``n_trajectories``, ...), or absent. ``added_action_init``
+(``{action: [...], log_std: [...]}``) says how a run started by ``--init-from`` fills the action
+channels its initial policy lacks, e.g. a throttle channel
+(:func:`agents.rl.training.widen_action_head`).
 """
 
 from __future__ import annotations
@@ -52,6 +57,8 @@ from typing import Any
 
 import yaml
 
+from agents.common.runs import ALGO_NAMES, algo_class
+
 __all__ = [
     "ALGOS", "PROFILE_SEPARATOR", "RUN_KEYS", "apply_overrides",
     "default_hyperparams_path",
@@ -59,13 +66,13 @@ __all__ = [
     "parse_override", "resolve_algo_kwargs", "linear_schedule",
 ]
 
-ALGOS = ("ppo", "sac", "td3")
+ALGOS = ALGO_NAMES
 PROFILE_SEPARATOR = "@"
 #: keys consumed by the training script itself, not passed to the algorithm constructor
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "noise_type", "noise_std",
             "env_kwargs", "curriculum", "error_curriculum", "obs_features", "reward_shaping",
             "critic_warmup_steps", "added_action_init",
-            "select_checkpoint", "seed_race")
+            "select_checkpoint", "seed_race", "history")
 
 _ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU",
                 "gelu": "GELU", "silu": "SiLU"}
@@ -73,7 +80,7 @@ _OPTIMIZERS = {"adam": "Adam", "adamw": "AdamW", "rmsprop": "RMSprop", "sgd": "S
 
 
 def default_hyperparams_path(algo: str) -> Path:
-    """Path of the YAML file shipped for ``algo`` (``ppo``, ``sac`` or ``td3``)."""
+    """Path of the YAML file shipped for ``algo`` (one of :data:`ALGOS`)."""
     algo = algo.lower()
     if algo not in ALGOS:
         raise ValueError(f"algo={algo!r} is not supported; choose one of {ALGOS}")
@@ -247,12 +254,9 @@ def _resolve_policy_kwargs(pk: Mapping[str, Any]) -> dict[str, Any]:
 def _check_keys(hp: Mapping[str, Any], algo: str) -> None:
     import inspect
 
-    from stable_baselines3 import PPO, SAC, TD3
-
-    classes = {"ppo": PPO, "sac": SAC, "td3": TD3}
-    if algo not in classes:
+    if algo not in ALGOS:
         raise ValueError(f"algo={algo!r} is not supported; choose one of {ALGOS}")
-    cls = classes[algo]
+    cls = algo_class(algo)
     params = set(inspect.signature(cls.__init__).parameters)
     allowed = (params - {"self", "env", "_init_setup_model"}) | set(RUN_KEYS)
     unknown = sorted(map(str, set(hp) - allowed))
@@ -273,7 +277,7 @@ def resolve_algo_kwargs(hp: Mapping[str, Any], algo: str, n_actions: int | None 
     hp : mapping
         Output of :func:`load_hyperparams` (after overrides).
     algo : str
-        ``ppo``, ``sac`` or ``td3``.
+        One of :data:`ALGOS`.
     n_actions : int, optional
         Action dimension, needed only when ``noise_type`` is set.
 
@@ -296,8 +300,8 @@ def resolve_algo_kwargs(hp: Mapping[str, Any], algo: str, n_actions: int | None 
         out["policy_kwargs"] = _resolve_policy_kwargs(pk)
     noise_type = hp.get("noise_type")
     if noise_type is not None:
-        if algo == "ppo":
-            raise ValueError("noise_type is for off-policy algorithms (sac, td3), not ppo")
+        if algo in ("ppo", "recurrent-ppo"):
+            raise ValueError(f"noise_type is for off-policy algorithms (sac, td3), not {algo}")
         if n_actions is None:
             raise ValueError("n_actions is required to build action noise")
         import numpy as np

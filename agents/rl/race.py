@@ -219,7 +219,8 @@ def seed_race(hp: dict[str, Any], run: dict[str, Any], run_dir: Path) -> dict[st
         if scores is None:  # no checkpoint selection: the final policies are scored here
             scores = score_candidates([(s, path) for s, path, _ in found], run["env"],
                                       hp.get("env_kwargs"), hp.get("obs_features"), n_states,
-                                      val_seed, run.get("device", "cpu"), label="seed")
+                                      val_seed, run.get("device", "cpu"), label="seed",
+                                      history=hp.get("history"))
         # the most landings; a tie goes to the earlier seed (the user's own first)
         best = max(range(k), key=lambda i: (scores[i]["success_rate"], -i))
         decision = {"seeds": seeds, "decide_at_steps": int(found[best][2]),

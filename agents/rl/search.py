@@ -226,7 +226,7 @@ def run_trial(storage_url: str, study_name: str, index: int, hp_base: dict, run_
 
     def evaluate(model) -> float:
         policy = SB3Law(model, model.get_vec_normalize_env(),
-                           obs_features=hp.get("obs_features"))
+                        obs_features=hp.get("obs_features"), history=hp.get("history"))
         res = rollout(env_id, policy, int(search["eval_states"]), _TUNE_SEED,
                       hp.get("env_kwargs"), trace_cases=0)
         return score(res.is_success, res.fuel_used_kg, res.touchdown_speed_m_s)

@@ -30,11 +30,13 @@ VALIDATION_SEED = 50000
 def score_candidates(candidates: list[tuple[int, Path]], env_id: str,
                      env_kwargs: dict[str, Any] | None, obs_features: list[str] | None,
                      n_states: int, seed: int = VALIDATION_SEED, device: str = "cpu",
-                     label: str = "checkpoint") -> list[dict[str, Any]]:
+                     label: str = "checkpoint", history: int | None = None
+                     ) -> list[dict[str, Any]]:
     """Landings of each candidate ``(key, model .zip)`` on the validation cases; one dict per
     candidate (``key``, ``model``, ``vecnormalize``: the statistics file found for it by
     :func:`agents.common.runs.load_trained` or None, ``success_rate``, ``fuel_mean_kg`` of its
-    landings), in the candidates' order. Prints one line per candidate."""
+    landings), in the candidates' order. ``obs_features`` and ``history`` are the run's (the
+    policies' inputs). Prints one line per candidate."""
     from agents.common.runs import load_trained
     from agents.laws import SB3Law
     from guidance.flight import rollout
@@ -45,7 +47,7 @@ def score_candidates(candidates: list[tuple[int, Path]], env_id: str,
     for key, model_path in candidates:
         model, vn_path, _ = load_trained(model_path, device=device)
         res = rollout(env_id, SB3Law(model, vn_path, name=f"{label} {key}",
-                                        obs_features=obs_features),
+                                     obs_features=obs_features, history=history),
                       int(n_states), int(seed), env_kwargs, trace_cases=0)
         ok = res.is_success
         scores.append({"key": int(key), "model": Path(model_path), "vecnormalize": vn_path,
@@ -78,7 +80,8 @@ def write_selection(run_dir: Path, seed: int, n_states: int, key_name: str,
 def select_checkpoint(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | None,
                       obs_features: list[str] | None, n_states: int, last: int,
                       seed: int = VALIDATION_SEED, device: str = "cpu",
-                      warn_below: float | None = 0.5) -> tuple[int, Path, Path | None]:
+                      warn_below: float | None = 0.5, history: int | None = None
+                      ) -> tuple[int, Path, Path | None]:
     """Among the ``last`` newest checkpoints of an SB3 run, the one that lands most of the
     validation states; writes ``selection.yml`` atomically and returns ``(steps, model path,
     VecNormalize path or None)``.
@@ -101,7 +104,7 @@ def select_checkpoint(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | N
     if not found:
         raise FileNotFoundError(f"no checkpoint in {Path(run_dir) / 'checkpoints'}")
     scores = score_candidates(sorted(found), env_id, env_kwargs, obs_features, n_states, seed,
-                              device, label="checkpoint at step")
+                              device, label="checkpoint at step", history=history)
     best = best_of(scores)
     low = warn_below is not None and best["success_rate"] < warn_below
     write_selection(run_dir, seed, n_states, "steps", scores, best,

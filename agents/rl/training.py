@@ -31,6 +31,9 @@ from lunar_env.validation import require_bool
 __all__ = ["train", "interrupt_on_sigterm", "make_training_env", "DEFAULT_ENV_ID"]
 
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
+#: the policy of a YAML entry without a ``policy`` key
+DEFAULT_POLICY = {"ppo": "MlpPolicy", "sac": "MlpPolicy", "td3": "MlpPolicy",
+                  "recurrent-ppo": "MlpLstmPolicy"}
 
 
 def _is_native_env(env_id: str) -> bool:
@@ -50,7 +53,8 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
                       curriculum: dict[str, Any] | None = None, total_timesteps: int = 0,
                       progress: bool = True, obs_features: list[str] | None = None,
                       reward_shaping: dict[str, Any] | None = None, gamma: float = 0.99,
-                      error_curriculum: dict[str, Any] | None = None):
+                      error_curriculum: dict[str, Any] | None = None,
+                      history: int | None = None):
     """Build the SB3 ``VecEnv`` to train on (no normalisation wrapper).
 
     Our env ids go through the natively batched vector env (:func:`agents.common.vec_env.
@@ -62,16 +66,21 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
     (YAML mapping) adds the potential-based shaping of :class:`agents.rl.shaping.PotentialShaping`
     with discount ``gamma`` (training only: evaluation measures landings, not rewards);
     ``error_curriculum`` (YAML mapping) anneals the env's uncertainty model in
-    (:class:`agents.rl.curriculum.ErrorScaleCurriculum`, inside the start curriculum). Episode
+    (:class:`agents.rl.curriculum.ErrorScaleCurriculum`, inside the start curriculum);
+    ``history`` (k decisions) gives the policy its last k inputs (observation and features) and
+    actions (:class:`agents.features.history.HistoryWrapper`, outermost, on any env id). Episode
     statistics are recorded by ``VecMonitor`` when the adapter does not already (they show the
     shaped return when shaping is on).
     """
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import VecMonitor
 
+    from agents.features.history import HistoryWrapper, validate_history
+
     env_kwargs = dict(env_kwargs or {})
     if n_envs < 1:
         raise ValueError(f"n_envs={n_envs} must be >= 1")
+    history = validate_history(history)
     if _is_native_env(env_id):
         from agents.common.vec_env import make_sb3_vec_env
 
@@ -99,6 +108,8 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
             from agents.features import ObsFeatureWrapper
 
             venv = ObsFeatureWrapper(venv, obs_features)
+        if history is not None:
+            venv = HistoryWrapper(venv, history)
     else:
         if curriculum or obs_features or reward_shaping or error_curriculum:
             raise ValueError("curriculum, error_curriculum, obs_features and reward_shaping are "
@@ -106,7 +117,8 @@ def make_training_env(env_id: str, n_envs: int, seed: int | None,
                              "lunar_env ids, "
                              f"not {env_id!r}")
         venv = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
-        return venv  # make_vec_env already wraps each env in Monitor
+        # make_vec_env already wraps each env in Monitor
+        return venv if history is None else HistoryWrapper(venv, history)
     from agents.rl.callbacks import find_wrapper
 
     if find_wrapper(venv, VecMonitor) is None:
@@ -163,7 +175,7 @@ def _select_final(model, run_dir: Path, run: dict[str, Any], hp: dict[str, Any],
         run_dir, run["env"], hp.get("env_kwargs"), hp.get("obs_features"),
         int(sel.get("states", 100)), int(sel.get("last", 4)),
         int(sel.get("seed", VALIDATION_SEED)), run.get("device", "cpu"),
-        warn_below=sel.get("warn_below", 0.5))
+        warn_below=sel.get("warn_below", 0.5), history=hp.get("history"))
     for src, name in ((vn_path, "vecnormalize.pkl"), (path, "model.zip")):
         if src is not None:  # model.zip last: a model file implies its statistics are in place
             atomic_write_bytes(run_dir / name, Path(src).read_bytes())
@@ -263,7 +275,8 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                              obs_features=hp.get("obs_features"),
                              reward_shaping=hp.get("reward_shaping"),
                              gamma=float(hp.get("gamma", 0.99)),
-                             error_curriculum=hp.get("error_curriculum"))
+                             error_curriculum=hp.get("error_curriculum"),
+                             history=hp.get("history"))
     tb_dir = None if run.get("no_tensorboard") else str(run_dir / "tb")
 
     if resume:
@@ -319,7 +332,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                 kwargs["policy_kwargs"]["features_extractor_class"] = StandardizedInputs
                 kwargs["policy_kwargs"]["features_extractor_kwargs"] = {
                     "mean": fx.mean.cpu().numpy().tolist(), "std": fx.std.cpu().numpy().tolist()}
-        model = algo_class(algo)(hp.get("policy", "MlpPolicy"), venv, seed=seed,
+        model = algo_class(algo)(hp.get("policy", DEFAULT_POLICY[algo]), venv, seed=seed,
                                   device=run.get("device", "cpu"), tensorboard_log=tb_dir,
                                   verbose=int(run.get("verbose", 0)), **kwargs)
         if init is not None:

@@ -16,8 +16,8 @@ Translation of an entry (:func:`zoo_entry`):
 
 - ``policy_kwargs`` becomes the Zoo's Python string (``activation_fn: tanh`` ->
   ``nn.Tanh``, ``optimizer_class: adam`` -> ``th.optim.Adam``);
-- ``obs_features``, ``reward_shaping`` and ``curriculum`` become keyword arguments of the
-  ``vec_env_wrapper`` :func:`lunar_vec_env`, which replaces the Zoo's ``DummyVecEnv`` by the
+- ``obs_features``, ``reward_shaping``, ``curriculum`` and ``history`` become keyword arguments
+  of the ``vec_env_wrapper`` :func:`lunar_vec_env`, which replaces the Zoo's ``DummyVecEnv`` by the
   natively batched env and wraps it exactly as ``python train.py`` does
   (:func:`agents.rl.training.make_training_env`);
 - everything else the Zoo understands (``n_envs``, ``n_timesteps``, ``policy``, ``normalize``,
@@ -27,7 +27,10 @@ Translation of an entry (:func:`zoo_entry`):
   counterpart and are left out; the file's header names them.
 
 Profiles (``<env id>@quick``) are merged into ``<algo>_quick.yml`` (the Zoo reads one entry per
-env id).
+env id). ``recurrent-ppo`` is the Zoo's ``ppo_lstm`` (sb3-contrib's ``RecurrentPPO``; the Zoo
+builds sb3-contrib's own ``MlpLstmPolicy``, which computes what
+:class:`agents.common.recurrent.SequenceLstmPolicy` does, more slowly):
+``python -m rl_zoo3.train --algo ppo_lstm --conf-file agents/hyperparams/zoo/recurrent-ppo.yml``.
 """
 
 from __future__ import annotations
@@ -45,14 +48,16 @@ from agents.hyperparams import ALGOS, PROFILE_SEPARATOR, default_hyperparams_pat
 
 __all__ = ["lunar_vec_env", "TrainingOnly", "zoo_entry", "zoo_hyperparams", "render_zoo_yaml",
            "zoo_path",
-           "ZOO_PROFILES", "LEFT_OUT_KEYS", "main"]
+           "ZOO_PROFILES", "LEFT_OUT_KEYS", "ZOO_ALGO_NAMES", "main"]
 
 #: profiles for which a Zoo file is generated (None: the base entries)
 ZOO_PROFILES: tuple[str | None, ...] = (None, "quick")
 #: run-level keys of ``python train.py`` the Zoo has no counterpart for
 LEFT_OUT_KEYS = ("select_checkpoint", "seed_race", "critic_warmup_steps", "added_action_init")
 #: keys handed to :func:`lunar_vec_env`
-_WRAPPER_KEYS = ("obs_features", "reward_shaping", "curriculum")
+_WRAPPER_KEYS = ("obs_features", "reward_shaping", "curriculum", "history")
+#: the Zoo's name of an algorithm whose name here differs (``--algo`` of ``rl_zoo3.train``)
+ZOO_ALGO_NAMES = {"recurrent-ppo": "ppo_lstm"}
 _WRAPPER = "agents.rl.zoo.lunar_vec_env"
 _ACTIVATIONS = {"tanh": "nn.Tanh", "relu": "nn.ReLU", "elu": "nn.ELU",
                 "leaky_relu": "nn.LeakyReLU", "gelu": "nn.GELU", "silu": "nn.SiLU"}
@@ -80,20 +85,21 @@ def _monitor_file(venv) -> str | None:
 def lunar_vec_env(venv, *, native: bool = True, obs_features: list[str] | None = None,
                   reward_shaping: dict[str, Any] | None = None,
                   curriculum: dict[str, Any] | None = None, gamma: float = 0.99,
-                  total_timesteps: int = 0):
+                  total_timesteps: int = 0, history: int | None = None):
     """The Zoo's ``vec_env_wrapper``: swap its ``DummyVecEnv`` for the native batched env.
 
     The Zoo calls ``lunar_vec_env(venv, **kwargs)`` on the ``DummyVecEnv`` of ``n_envs``
     single envs it built (with ``env_kwargs`` and the run's seed). This function reads the env
     id, its constructor arguments, ``n_envs`` and the seed from it, closes it, and returns the
     training env ``python train.py`` would build (:func:`agents.rl.training.make_training_env`):
-    the native vector env with the curriculum, the reward shaping and the observation features,
-    under a ``VecMonitor`` that writes the Zoo's monitor CSV (``<log dir>/native.monitor.csv``).
+    the native vector env with the curriculum, the reward shaping, the observation features and
+    the stacked history, under a ``VecMonitor`` that writes the Zoo's monitor CSV
+    (``<log dir>/native.monitor.csv``).
 
     The Zoo applies the same wrapper to its evaluation env (and ``rl_zoo3.enjoy`` to its test
-    env), which it builds without a monitor file: those get the features only (curriculum
-    starts and shaping are training devices; evaluation measures the env's own episodes and
-    rewards; :class:`TrainingOnly` stands in for each, keeping the chain's depth).
+    env), which it builds without a monitor file: those get the features and the history only
+    (curriculum starts and shaping are training devices; evaluation measures the env's own
+    episodes and rewards; :class:`TrainingOnly` stands in for each, keeping the chain's depth).
     ``total_timesteps`` (the curriculum's annealing length) is the entry's
     ``n_timesteps``: a Zoo ``-n`` override does not change it.
 
@@ -104,7 +110,7 @@ def lunar_vec_env(venv, *, native: bool = True, obs_features: list[str] | None =
     native : bool
         False keeps the ``DummyVecEnv`` (allowed only without features, shaping and
         curriculum, which need the native batch); for speed comparisons.
-    obs_features, reward_shaping, curriculum, gamma, total_timesteps
+    obs_features, reward_shaping, curriculum, gamma, total_timesteps, history
         As in :func:`agents.rl.training.make_training_env`.
 
     Raises
@@ -121,9 +127,9 @@ def lunar_vec_env(venv, *, native: bool = True, obs_features: list[str] | None =
         raise ValueError(f"lunar_vec_env wraps the Zoo's DummyVecEnv (--vec-env dummy), got "
                          f"{type(venv).__name__}")
     if not native:
-        if obs_features or reward_shaping or curriculum:
-            raise ValueError("native=False: obs_features, reward_shaping and curriculum need the "
-                             "native vector env; drop them or set native: true")
+        if obs_features or reward_shaping or curriculum or history:
+            raise ValueError("native=False: obs_features, reward_shaping, curriculum and history "
+                             "need the native vector env; drop them or set native: true")
         return venv
     spec = venv.envs[0].spec
     if spec is None or not _is_native_env(spec.id):
@@ -137,14 +143,15 @@ def lunar_vec_env(venv, *, native: bool = True, obs_features: list[str] | None =
     venv.close()
     if monitor is None:
         return _evaluation_env(spec.id, n_envs, seed, env_kwargs, obs_features,
-                               n_inactive=int(bool(curriculum)) + int(bool(reward_shaping)))
+                               n_inactive=int(bool(curriculum)) + int(bool(reward_shaping)),
+                               history=history)
     out = make_training_env(
         spec.id, n_envs, seed, env_kwargs=env_kwargs,
         curriculum=dict(curriculum) if curriculum else None,
         total_timesteps=int(total_timesteps), progress=False,
         obs_features=list(obs_features) if obs_features else None,
         reward_shaping=dict(reward_shaping) if reward_shaping else None,
-        gamma=float(gamma))
+        gamma=float(gamma), history=history)
     if isinstance(out, VecMonitor):
         out = VecMonitor(out.venv, filename=str(Path(monitor).parent / "native"))
     return out
@@ -165,8 +172,10 @@ class TrainingOnly(VecEnvWrapper):
 
 
 def _evaluation_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: dict[str, Any],
-                    obs_features: list[str] | None, n_inactive: int):
-    """The native env with the observation features and without the training devices."""
+                    obs_features: list[str] | None, n_inactive: int,
+                    history: int | None = None):
+    """The native env with the observation features and the history, without the training
+    devices."""
     from stable_baselines3.common.vec_env import VecMonitor
 
     from agents.common.vec_env import make_sb3_vec_env
@@ -178,6 +187,10 @@ def _evaluation_env(env_id: str, n_envs: int, seed: int | None, env_kwargs: dict
         from agents.features import ObsFeatureWrapper
 
         venv = ObsFeatureWrapper(venv, list(obs_features))
+    if history:
+        from agents.features.history import HistoryWrapper
+
+        venv = HistoryWrapper(venv, int(history))
     return VecMonitor(venv)
 
 
@@ -269,7 +282,8 @@ def render_zoo_yaml(algo: str, profile: str | None = None) -> str:
     src = f"agents/hyperparams/{algo}.yml" + (f" (profile @{profile})" if profile else "")
     head = (f"# GENERATED by `python -m agents.rl.zoo` from {src}: do not edit; edit the source\n"
             "# and regenerate (tests/agents/rl/test_zoo.py fails when this file is stale).\n"
-            f"# RL Baselines3 Zoo: python -m rl_zoo3.train --algo {algo} --env <id> "
+            f"# RL Baselines3 Zoo: python -m rl_zoo3.train --algo {ZOO_ALGO_NAMES.get(algo, algo)}"
+            " --env <id> "
             "--gym-packages lunar_env \\\n"
             f"#   --conf-file agents/hyperparams/zoo/{zoo_path(algo, profile).name}\n"
             f"# Left out (run features of `python train.py` only): {', '.join(LEFT_OUT_KEYS)}.\n")

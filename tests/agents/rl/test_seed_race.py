@@ -57,20 +57,22 @@ def test_the_seed_whose_final_policy_lands_more_wins(tmp_path, monkeypatch, rate
     import agents.rl.selection as sel
 
     hp = {"n_timesteps": 352, "seed_race": {"candidates": 2},
-          "select_checkpoint": {"states": 7}}
+          "select_checkpoint": {"states": 7}, "history": 3}
     run = {"env": ENV_ID, "seed": 15}
     _fake_candidates(tmp_path, (15, 16), 352)
     monkeypatch.setattr(rc, "_train_candidates", lambda *a, **k: None)
     seen = {}
 
-    def score(found, env_id, env_kwargs, obs_features, n_states, seed, device, label):
-        seen.update(n_states=n_states, seed=seed, keys=[k for k, _ in found])
+    def score(found, env_id, env_kwargs, obs_features, n_states, seed, device, label,
+              history=None):
+        seen.update(n_states=n_states, seed=seed, keys=[k for k, _ in found], history=history)
         return [{"key": k, "success_rate": r} for (k, _), r in zip(found, rates, strict=True)]
 
     monkeypatch.setattr(sel, "score_candidates", score)
     out = rc.seed_race(hp, run, tmp_path)
     want = (15, 16)[chosen]
-    assert seen == {"n_states": 7, "seed": sel.VALIDATION_SEED, "keys": [15, 16]}
+    # the candidates fly with the run's inputs (its history)
+    assert seen == {"n_states": 7, "seed": sel.VALIDATION_SEED, "keys": [15, 16], "history": 3}
     assert out["seed"] == want and out["race_seed"] == 15
     assert yaml.safe_load((tmp_path / "args.yml").read_text())["seed"] == want
     decision = yaml.safe_load((tmp_path / "race.yml").read_text())

@@ -29,6 +29,7 @@ def test_shipped_zoo_files_are_generated_from_the_project_files():
 
 def test_zoo_entry_moves_project_keys_into_the_vec_env_wrapper():
     hp = {"n_envs": 4, "n_timesteps": 1000.0, "gamma": 0.99, "obs_features": ["log_altitude"],
+          "history": 8,
           "reward_shaping": {"potential": "surface_speed"}, "curriculum": {"start_prob": 0.5},
           "select_checkpoint": {"states": 3}, "seed_race": {"candidates": 2},
           "policy_kwargs": {"net_arch": [8], "activation_fn": "relu",
@@ -40,7 +41,8 @@ def test_zoo_entry_moves_project_keys_into_the_vec_env_wrapper():
     assert "obs_features" not in out and "curriculum" not in out
     (wrapper,) = out["vec_env_wrapper"]
     kw = wrapper["agents.rl.zoo.lunar_vec_env"]
-    assert kw["obs_features"] == ["log_altitude"]
+    assert kw["obs_features"] == ["log_altitude"] and kw["history"] == 8
+    assert "history" not in out
     assert kw["gamma"] == 0.99 and kw["total_timesteps"] == 1000
     with pytest.raises(ValueError, match="activation_fn='swish'"):
         zoo_entry({"policy_kwargs": {"activation_fn": "swish"}})
@@ -76,6 +78,15 @@ def test_rl_zoo_trains_ppo_with_the_shipped_quick_file(tmp_path, env_id):
     # the native env logged whole episodes in the Zoo's monitor format
     lines = (run / "native.monitor.csv").read_text().splitlines()
     assert lines[0].startswith("#") and lines[1].startswith("r,l,t")
+
+
+@pytest.mark.slow
+def test_rl_zoo_trains_recurrent_ppo_as_ppo_lstm(tmp_path):
+    """The recurrent entry's Zoo file under the Zoo's name of RecurrentPPO (``ppo_lstm``)."""
+    pytest.importorskip("sb3_contrib")
+    assert "--algo ppo_lstm" in render_zoo_yaml("recurrent-ppo", "quick")
+    _zoo_train(tmp_path, "ppo_lstm", "LunarPinpointLanding-v2",
+               "agents/hyperparams/zoo/recurrent-ppo_quick.yml", "-n", "1024")
 
 
 @pytest.mark.slow
