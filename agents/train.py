@@ -221,6 +221,13 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
             print(f"--init-from {args.init_from}: obs_features set to {init_feats} (those of the "
                   "initial policy)")
             hp["obs_features"] = init_feats
+    if args.init_from and "history" not in overrides:
+        # so does its history: the stacked inputs are the network's first layer
+        init_history = read_run(args.init_from)[1].get("history")
+        if hp.get("history") != init_history:
+            print(f"--init-from {args.init_from}: history set to {init_history} (that of the "
+                  "initial policy)")
+            hp["history"] = init_history
     if hp.get("added_action_init") is not None and not args.init_from:
         raise ValueError(f"added_action_init={hp['added_action_init']!r} fills the action "
                          "channels an --init-from policy lacks: give --init-from, or drop it")

@@ -327,6 +327,11 @@ def test_a_history_run_records_its_history_and_flies_with_it(tmp_path):
     with pytest.raises(ValueError, match=r"bare: the model takes 52 inputs.*history=None gives "
                                          r"12"):
         rollout(ENV_ID, bare, 1, seed=0, env_kwargs=ENV_KWARGS, trace_cases=0)
+    # a run started from it takes its inputs, history included
+    tuned = tmp_path / "tuned"
+    assert tr.main([*TINY, "--init-from", str(run_dir), "--run-dir", str(tuned),
+                    "--no-eval"]) == 0
+    assert yaml.safe_load((tuned / "config.yml").read_text())["history"] == 4
 
 
 # ----------------------------------------------------------------------------- bad input
