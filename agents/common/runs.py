@@ -20,6 +20,7 @@ Guarantees:
 
 from __future__ import annotations
 
+import json
 import os
 import pickle
 import re
@@ -344,8 +345,10 @@ def load_trained(run_dir_or_model: str | Path, env=None, device: str = "cpu"):
     if algo is None:
         with zipfile.ZipFile(model_path) as zf:
             data = zf.read("data").decode()
-        # a model without its run files: the algorithm from what its saved data holds
-        if "RecurrentActorCriticPolicy" in data or "LstmPolicy" in data:
+        # a model without its run files: the algorithm from what its saved data holds (the
+        # recurrent policies are sb3-contrib's and agents.common.recurrent's)
+        policy = json.loads(data).get("policy_class")
+        if isinstance(policy, dict) and "common.recurrent" in str(policy.get("__module__")):
             algo = "recurrent-ppo"
         else:
             algo = "sac" if '"log_ent_coef"' in data else ("td3" if "target_policy_noise" in data
