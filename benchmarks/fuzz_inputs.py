@@ -39,6 +39,7 @@ import lunar_env  # noqa: F401  (registers the ids)
 ENV_IDS = ("LunarSoftLanding-v0", "LunarPinpointLanding-v0")
 _NUMERIC = ("dt_s", "time_limit_s", "success_speed_m_s", "max_fall_s", "cutoff_speed_m_s",
             "success_miss_m")
+_NONE_STORED_AS = {"cutoff_speed_m_s": 0.0, "success_miss_m": float("inf")}
 _ARGS = (*_NUMERIC, "substeps", "throttle_channel", "scenario")
 _OK_ERRORS = (ValueError, TypeError, RuntimeError, KeyError)
 
@@ -149,6 +150,11 @@ def _expected_kept(env, kw) -> str | None:
             if v is None and name in ("time_limit_s", "max_fall_s"):
                 continue  # None: the documented default
             got = getattr(task, name)
+            if v is None and name in _NONE_STORED_AS:
+                # None: no cut-off at a speed minimum (stored as 0), no miss criterion (inf)
+                if got != _NONE_STORED_AS[name]:
+                    return f"{name}=None became {got!r}"
+                continue
             if float(np.asarray(v).reshape(())) != got:
                 return f"{name}={v!r} became {got!r}"
         elif name == "substeps" and task.substeps != v:

@@ -215,6 +215,16 @@ def test_fuzz_env_inputs_work_or_are_named():
     _fuzz(40)
 
 
+def test_fuzz_reads_cutoff_speed_none_as_no_cutoff():
+    """``cutoff_speed_m_s=None`` is the documented "no cut-off" (stored as 0): the fuzzer
+    counts it as kept, not as a crash of its own."""
+    fz = _fuzz_module()
+    tally = fz.Tally()
+    fz.check_case(tally, "LunarSoftLanding-v0", None, {"cutoff_speed_m_s": None}, None, None,
+                  ["valid"], 0)
+    assert tally.silent == 0 and tally.unclear == 0, tally.examples
+
+
 @pytest.mark.slow
 def test_fuzz_env_inputs_slow():
     _fuzz(3000)

@@ -187,11 +187,11 @@ def test_the_terminal_window_lands_the_nominal_case_without_the_fall():
 
 @pytest.mark.slow
 def test_the_terminal_window_lands_altitude_errors_that_defeat_the_fall():
-    # navigated altitude 6 m (1.8σ) above or below the truth at the gate (a 180 m bias before
-    # the radar, times its weight 0.05 × 2000 / 3000): the fall from a stop 4 m up crosses
-    # braking below the gate, or falls 10 m (5.7 m/s); the window spans ±8 m
+    # navigated altitude 6 m above or below the truth at the gate (the terminal sensors' range
+    # error pinned at 0.3 % of the altitude, 3σ of standard's 0.1 %, at 2 km): the fall from a
+    # stop 4 m up crosses braking below the gate, or falls 10 m (5.7 m/s); the window spans ±8 m
     env_kwargs = dict(THROTTLED, uncertainty="standard")
-    pinned = {"errors": {"nav_position_bias_m": [[180.0, 0.0, 0.0], [-180.0, 0.0, 0.0]]}}
+    pinned = {"errors": {"sensor_position_fraction": [[0.003, 0.0, 0.0], [-0.003, 0.0, 0.0]]}}
     window = PinpointReserveExpert(_scenario(), 0.05, stop_above_m=12.0, terminal_window=True)
     out = fly(ENV_ID, window, 2, seed=0, env_kwargs=env_kwargs, reset_options=pinned)
     assert out.is_success.all(), (out.touchdown_speed_m_s, out.miss_distance_m)
