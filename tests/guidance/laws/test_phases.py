@@ -184,3 +184,12 @@ def test_v2_flights_are_unchanged(key):
                                      scenario=get_scenario("peng2012")))
     ro = fly(env_id, law, 2, seed=5, env_kwargs=kw)
     np.testing.assert_array_equal(ro.final_state_nd, np.array(V2_FINAL_STATES[key]))
+
+
+def test_convex_refuses_the_touchdown_problem_by_name():
+    """SCvx has no transcription of the touchdown problem: the law says so when it is built,
+    not at its first re-plan."""
+    pytest.importorskip("cvxpy")
+    ctx = LawContext(env_id=V3, env_kwargs={}, scenario=SC)
+    with pytest.raises(ValueError, match="no convex transcription of TouchdownOCP"):
+        build_law("convex", ctx)
