@@ -37,8 +37,13 @@ Where the episode ends at touchdown on the site (``LunarPinpointLanding-v3``,
 every navigation error: the braking phase (P63) to a *high gate* above and uprange of the site,
 the approach (P64) to a *low gate* straight above it, then terminal descent (P66) at a constant
 rate of descent with the horizontal velocity nulled, throttled from the IMU-measured thrust.
-A gate counts as reached when its countdown's t_go falls to :attr:`DescentPhases.switch_s`
-(the low gate also when the navigated height is at or below it).
+Each gate's t_go is planned once and counted down (the throttled engine's rule above): the
+braking phase's by the law's t_go rule, or at the least-effort time where the engine's full
+thrust would only be met by a hurried profile (a throttled engine need not hurry), planned at
+the first decision the IMU has measured the engine; the approach's as the straight line from
+the high gate to the low gate at a constant deceleration. A gate counts as reached when its
+t_go falls to :attr:`DescentPhases.switch_s` (the low gate also when the navigated height is
+at or below it). A command the engine cannot give keeps its vertical component first.
 
 Lead time ([K74]; Luminary carries ≈2.2 s): with ``lead`` = τ > 0 the navigated state is first
 extrapolated τ seconds with the known acceleration plus the previous thrust command, and the
