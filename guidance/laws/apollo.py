@@ -101,16 +101,18 @@ class DescentPhases:
         kit). Here terminal descent costs the hover's propellant, 0.18 kg/s at this lander's
         landing mass (≈520 N at Isp 300 s), and the lander has ~22 kg over the optimum for
         everything (Apollo kept two minutes of hover): default 15 m, 15 s at 1 m/s (measured:
-        the same success as 30 m with 1.5–2.5 kg less propellant).
+        the same success as 30 m with 2.6 kg less propellant).
     rate_m_s : float
         Rate of descent held in terminal descent (m/s), in [0.2, 2.9]
         (:data:`RATE_RANGE_M_S`); also the low gate's velocity (straight down). Apollo 11
         planned 3 ft/s (0.9 m/s) (press kit). Default 1 m/s: Apollo's, a third of the landing
-        gear's 3 m/s limit (NASA TN D-6850); 1.5 m/s measured the same success for ~1 kg less.
+        gear's 3 m/s limit (NASA TN D-6850); 1.5 m/s measured the same success for 0.9 kg
+        less.
     high_gate_m : float
         Height of the high gate (m): 0 for none (braking straight to the low gate), else in
         (low gate, :data:`HIGH_GATE_MAX_M`]. Apollo's braking phase ended at about 7,000 ft
-        (2.1 km) (press kit). Default 2000 m.
+        (2.1 km) (press kit). Default 2000 m (measured: ZEM/ZEV without the high gate lands
+        one development case fewer in a hundred).
     high_gate_angle_deg : float
         Elevation of the high gate seen from the low gate (degrees), in [2, 45]: the
         approach's line of sight. Default 10°: where this lander's certified optimum crosses
@@ -120,8 +122,10 @@ class DescentPhases:
     high_gate_speed_m_s : float
         Speed at the high gate along the line of sight toward the low gate (m/s), in
         (0, 1000]. Default 250 m/s, measured: the certified optimum crosses 2 km at 289 m/s
-        at full thrust, and a gate at that speed leaves the approach no thrust margin
-        (82 % success with ZEM/ZEV, none with Apollo's gain); 230–270 m/s measured alike.
+        at full thrust, and a gate at that speed leaves the approach no thrust margin (91 %
+        success with ZEM/ZEV, none with Apollo's gain, against 95 % and 94 % at 250 m/s);
+        250 m/s is the fastest measured speed (the least propellant) at which Apollo's gain
+        still lands (at 270 m/s it lands none, ZEM/ZEV still 95 %).
     switch_s : float
         t_go (s) at which a gate counts as reached, in [0.5, 20]. Default 2 s: two decisions
         of 1 s; the explicit law's position gain grows as 1/t_go² and below 2 s it turns the
