@@ -32,6 +32,10 @@ class GuidanceFamily(ABC):
 
     #: axes of the guidance frame (horizontal axes, then up)
     n_axes: int = 3
+    #: the episode ends at touchdown on a landing site (the frame's target is the site on the
+    #: surface): the explicit laws fly Apollo's phases to it (:class:`guidance.laws.apollo.
+    #: DescentPhases`); elsewhere they fly to their target directly
+    lands_on_site: bool = False
 
     @abstractmethod
     def frame_function(self, scenario) -> Callable[[np.ndarray], Any]:

@@ -31,7 +31,10 @@ def encode_touchdown(direction: np.ndarray, throttle: np.ndarray | None,
 
 class TouchdownGuidance(PinpointGuidance):
     """The touchdown family (``scenario.family == "pinpoint_touchdown"``): the pinpoint frame
-    (the target on the surface, so the frame's height is the altitude above it)."""
+    (the target on the surface, so the frame's height is the altitude above it); the episode
+    ends at touchdown on that site."""
+
+    lands_on_site = True
 
     def encoder(self, scenario, throttled: bool = True) -> Callable:
         """The v3 encoder; its actions always carry the throttle (v3's engine throttles, so

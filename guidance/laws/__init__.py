@@ -7,7 +7,8 @@ name               law
 ``zem-zev``        the same law at k_r = 6 (ZEM/ZEV feedback)
 ``gravity-turn``   thrust against the surface-relative velocity
 ``open-loop``      each case's optimum (nominal plant, navigated start), replayed
-``feedback``       the family's re-planning Pontryagin expert (:mod:`.feedback`)
+``feedback``       the family's re-planning expert (:mod:`.feedback`; touchdown:
+                   :mod:`.touchdown_baselines`)
 ``convex``         successive-convexification re-planning (:mod:`.convex`; needs cvxpy)
 ``random``         uniform-random actions (the benchmark score's 0, :mod:`.random`)
 =================  ===========================================================================
@@ -19,7 +20,9 @@ from guidance.registry import register_law
 
 register_law("apollo", "guidance.laws.apollo_specs:apollo_from_spec",
              summary="augmented Apollo explicit guidance, k_r = 12 (options: kr, tgo, "
-                     "tgo_margin, lead, rotation, terminal, aim)")
+                     "tgo_margin, lead, rotation, terminal, aim; v3 phases: phased, "
+                     "high_gate, hg_angle, hg_speed, low_gate, rate, switch, rate_tau, h_tau, "
+                     "tilt)")
 register_law("zem-zev", "guidance.laws.apollo_specs:zem_zev_from_spec",
              summary="ZEM/ZEV feedback guidance (augmented Apollo at k_r = 6; same options)")
 register_law("gravity-turn", "guidance.laws.apollo_specs:gravity_turn_from_spec",
@@ -29,7 +32,7 @@ register_law("open-loop", "guidance.laws.feedback:open_loop_from_spec",
 register_law("feedback", "guidance.laws.feedback:feedback_from_spec",
              summary="the family's Pontryagin re-planning expert (pinpoint options: "
                      "thrust_reserve, switch_m, stop_above_m, estimate_thrust, "
-                     "terminal_window)")
+                     "terminal_window; touchdown options: every, min_tgo)")
 register_law("convex", "guidance.laws.convex:convex_from_spec",
              summary="successive-convexification re-planning (options: every, nodes, iters, "
                      "first_iter, engine, tmax, min_tgo)")

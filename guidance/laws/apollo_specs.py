@@ -10,6 +10,9 @@ Syntax (``NAME[:KEY=VALUE,...]``, no argument)::
     zem-zev:rotation=0           3D: leave the Moon's Coriolis/centrifugal terms out
     apollo:tgo=rocket,terminal=4 a constant-thrust finish against the velocity (t_go ≤ 4 s)
     apollo:tgo=rocket,tgo_margin=0.02,aim=5   aim 5 m above the gate (3D, constant thrust)
+    apollo:low_gate=50,rate=1.5  LunarPinpointLanding-v3: another low gate and descent rate
+    zem-zev:high_gate=0          v3: brake straight to the low gate (no high gate)
+    zem-zev:phased=0             v3: aim at the site itself, no phases
     gravity-turn                 thrust opposite the surface-relative velocity
 
 Options of ``apollo`` / ``zem-zev``:
@@ -28,6 +31,27 @@ key             meaning                                                        d
 ``aim``         aim point (m) ∈ [0, 100] above the terminal surface            0
 ==============  =============================================================  =======
 
+Phases (``LunarPinpointLanding-v3``, where the episode ends at touchdown on the site; the
+defaults, their sources and reasons: :class:`~guidance.laws.apollo.DescentPhases`):
+
+===============  ============================================================  ==========
+key              meaning                                                       default
+===============  ============================================================  ==========
+``phased``       1/0: fly Apollo's phases (braking, approach, terminal         1 (v3)
+                 descent); 0 aims at the site directly
+``high_gate``    height of the high gate (m): 0 (none) or in (low_gate, 10000]  2000
+``hg_angle``     the high gate's elevation seen from the low gate (°) ∈ [2, 45]  10
+``hg_speed``     speed at the high gate (m/s) ∈ (0, 1000]                       250
+``low_gate``     height of the low gate above the site (m) ∈ [5, 500]           15
+``rate``         terminal descent's rate of descent (m/s) ∈ [0.2, 2.9]          1
+``switch``       t_go (s) ∈ [0.5, 20] at which a gate counts as reached         2
+``rate_tau``     time constant of the rate-of-descent loop (s) ∈ [0.5, 20]      2
+``h_tau``        time constant of the horizontal-velocity nulling (s)           3
+                 ∈ [0.5, 30]
+``tilt``         largest tilt from the vertical in terminal descent (°)         45
+                 ∈ [0, 60]
+===============  ============================================================  ==========
+
 ``gravity-turn`` takes ``rotation`` only. The engine (constant thrust or throttled) is the
 env's: ``throttle_channel`` in the env keyword arguments.
 """
@@ -36,12 +60,33 @@ from __future__ import annotations
 
 from guidance.explicit import K_R_APOLLO, K_R_ZEM_ZEV
 from guidance.law import GuidanceLaw
-from guidance.laws.apollo import AugmentedApolloLaw, GravityTurnLaw
+from guidance.laws.apollo import AugmentedApolloLaw, DescentPhases, GravityTurnLaw
 from guidance.registry import flag
 
 __all__ = ["apollo_from_spec", "zem_zev_from_spec", "gravity_turn_from_spec"]
 
-_OPTIONS = ("kr", "tgo_margin", "lead", "tgo", "rotation", "terminal", "aim")
+#: option key -> :class:`~guidance.laws.apollo.DescentPhases` field
+_PHASE_OPTIONS = {"high_gate": "high_gate_m", "hg_angle": "high_gate_angle_deg",
+                  "hg_speed": "high_gate_speed_m_s", "low_gate": "low_gate_m",
+                  "rate": "rate_m_s", "switch": "switch_s",
+                  "rate_tau": "rate_tau_s",
+                  "h_tau": "horizontal_tau_s", "tilt": "max_tilt_deg"}
+_OPTIONS = ("kr", "tgo_margin", "lead", "tgo", "rotation", "terminal", "aim", "phased",
+            *_PHASE_OPTIONS)
+
+
+def _phases(spec):
+    """The ``phases`` argument of :class:`AugmentedApolloLaw` from the spec's options."""
+    phased = spec.option("phased", flag, None)
+    given = {field: spec.option(key, float, None) for key, field in _PHASE_OPTIONS.items()
+             if key in spec.options}
+    if phased is False and given:
+        keys = ", ".join(k for k in _PHASE_OPTIONS if k in spec.options)
+        raise ValueError(f"law {spec.text!r}: {keys} are options of the phases; phased=0 "
+                         "flies none")
+    if given:
+        return DescentPhases(**given)
+    return phased
 
 
 def _no_argument(spec) -> None:
@@ -62,6 +107,7 @@ def _augmented(spec, default_k_r: float) -> GuidanceLaw:
             include_rotation=spec.option("rotation", flag, True),
             terminal_s=spec.option("terminal", float, 0.0),
             aim_above_m=spec.option("aim", float, 0.0),
+            phases=_phases(spec),
             name=spec.text or spec.name)
     except ValueError as exc:
         msg = str(exc)  # the spec's own checks name the law already

@@ -125,6 +125,14 @@ class ConvexReplanningLaw(GuidanceLaw):
                                                 throttle_max=throttle_max)
         self._family = family
         self.ocp = family.replan_ocp(scenario)
+        from optimizers.problems.pinpoint import PinpointOCP
+        from optimizers.problems.planar_ocp import PlanarOCP
+
+        if not isinstance(self.ocp, PlanarOCP | PinpointOCP):
+            raise ValueError(f"convex re-planning has no convex transcription of "
+                             f"{type(self.ocp).__name__} (scenario {scenario.name!r}); the SCvx "
+                             "model covers the planar landing and the pinpoint landing to its "
+                             "gate (PlanarOCP, PinpointOCP)")
         self._ocps = {1.0: self.ocp}
         self._nominal = None
         self.replan_s: list[float] = []

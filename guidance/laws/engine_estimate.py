@@ -50,6 +50,7 @@ class ThrustScaleEstimator:
         self._scale = np.ones(n)
         self._throttle = np.full(n, np.nan)
         self._mass_kg = np.full(n, np.nan)
+        self._measured = np.zeros(n, dtype=bool)
 
     def reset_rows(self, rows) -> None:
         """Forget landers ``rows`` (their new episodes' engines are others)."""
@@ -57,11 +58,17 @@ class ThrustScaleEstimator:
         self._scale[rows] = 1.0
         self._throttle[rows] = np.nan
         self._mass_kg[rows] = np.nan
+        self._measured[rows] = False
 
     @property
     def scale(self) -> np.ndarray:
         """(N,) the engine's thrust acceleration at full throttle over the model's T/m̂."""
         return self._scale
+
+    @property
+    def measured(self) -> np.ndarray:
+        """(N,) bool: the lander's scale has been measured (else it is the model's, 1)."""
+        return self._measured
 
     def observe(self, imu_m_s2: np.ndarray, mass_kg: np.ndarray, active: np.ndarray) -> None:
         """The response to the last decision: the IMU's specific force (N, d) (m/s²) measured
@@ -75,6 +82,7 @@ class ThrustScaleEstimator:
             # the step's mean acceleration is the thrust over its middle mass
             mid = 0.5 * (self._mass_kg[ok] + m[ok])
             self._scale[ok] = meas[ok] / thr[ok] * mid / self.thrust_n
+            self._measured |= ok
 
     def record(self, throttle: np.ndarray, mass_kg: np.ndarray, active: np.ndarray) -> None:
         """The throttles (N,) flown from the believed masses (N,) (kg) at this decision."""

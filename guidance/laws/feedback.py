@@ -36,13 +36,17 @@ open_loop_from_spec.validate = _check_open_loop
 
 def feedback_from_spec(spec, context) -> GuidanceLaw:
     """``feedback``: the family's closed-loop expert (planar: Pontryagin re-planning; pinpoint:
-    compiled Pontryagin re-planning) on the navigation solution and the nominal model.
+    compiled Pontryagin re-planning; touchdown: the certified optimum re-planned every
+    ``every=10`` s, none in the last ``min_tgo=15`` s of a plan) on the navigation solution
+    and the nominal model.
     Option ``thrust_reserve=R`` (pinpoint, throttled env): plan and fly at throttle 1 − R,
     full thrust when long, 1 − 2R when short by more than ``switch_m=50`` m; the extremals
     stop ``stop_above_m=0`` m above the target; ``estimate_thrust=1`` scales the throttle by
     the engine's estimated thrust; ``terminal_window=1`` flies the last seconds as a window
     that crosses the gate below 5 m/s over a band of heights, instead of the fall from the stop
     (:class:`guidance.laws.pontryagin_pinpoint.PinpointReserveExpert`)."""
+    if family_name(context.scenario) == "pinpoint_touchdown":
+        return _touchdown_feedback(spec, context)
     spec.require_known_options(("thrust_reserve", "switch_m", "stop_above_m",
                                 "estimate_thrust", "terminal_window"))
     require_no_argument(spec)
@@ -71,4 +75,28 @@ def feedback_from_spec(spec, context) -> GuidanceLaw:
         return law
     law = BASELINE_FAMILIES.of(context.scenario).expert_law(context.scenario)
     law.name = "feedback"
+    return law
+
+
+def _touchdown_feedback(spec, context) -> GuidanceLaw:
+    """``feedback[:every=S,min_tgo=S]`` on the touchdown family: the certified optimum
+    re-planned from the navigation solution every S seconds
+    (:class:`guidance.laws.touchdown_baselines.TouchdownReplanningLaw`)."""
+    from guidance.laws.touchdown_baselines import (
+        DEFAULT_MIN_TGO_S,
+        DEFAULT_REPLAN_S,
+        TouchdownReplanningLaw,
+    )
+
+    spec.require_known_options(("every", "min_tgo"))
+    require_no_argument(spec)
+    try:
+        law = TouchdownReplanningLaw(context.scenario,
+                                     every_s=spec.option("every", float, DEFAULT_REPLAN_S),
+                                     min_tgo_s=spec.option("min_tgo", float, DEFAULT_MIN_TGO_S))
+    except ValueError as exc:
+        msg = str(exc)
+        raise ValueError(msg if msg.startswith("law ") else f"law {spec.text!r}: {msg}"
+                         ) from None
+    law.name = spec.text if spec.options else "feedback"
     return law

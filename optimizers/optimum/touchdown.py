@@ -38,6 +38,7 @@ import tempfile
 import time
 from collections import OrderedDict
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -100,6 +101,22 @@ def touchdown_ocp(scenario: TouchdownScenario) -> TouchdownOCP:
     while len(_OCPS) > 16:
         _OCPS.popitem(last=False)
     return _OCPS[key]
+
+
+@lru_cache(maxsize=64)
+def _legendre_gauss_cached(n: int) -> tuple[np.ndarray, np.ndarray]:
+    from ..common.quadrature import legendre_gauss
+
+    x, w = legendre_gauss(n)
+    x.setflags(write=False)
+    w.setflags(write=False)
+    return x, w
+
+
+def _legendre_gauss(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Legendre–Gauss points and weights of ``n`` nodes, computed once per ``n`` (a replay
+    evaluates the law at every env step: the eigenvalue solve cost most of it)."""
+    return _legendre_gauss_cached(n)
 
 
 @dataclass
@@ -171,7 +188,7 @@ class TouchdownOptimum:
         """
         if not self.success:
             raise ValueError(f"no optimal control for an uncertified case ({self.message})")
-        from ..common.quadrature import lagrange_interpolate, legendre_gauss
+        from ..common.quadrature import lagrange_interpolate
 
         t = np.clip(np.atleast_1d(np.asarray(t_s, dtype=float)), 0.0, self.tf_s)
         edges = np.concatenate([[0.0], np.cumsum(self.durations_s)])
@@ -182,9 +199,9 @@ class TouchdownOptimum:
             sel = k == p
             if sel.any():
                 tau = 2.0 * (t[sel] - edges[p]) / self.durations_s[p] - 1.0
-                e[sel] = lagrange_interpolate(legendre_gauss(int(n))[0], dirs[p], tau)
+                e[sel] = lagrange_interpolate(_legendre_gauss(int(n))[0], dirs[p], tau)
         e /= np.linalg.norm(e, axis=1)[:, None]
-        ang = touchdown_ocp(scenario).angles_of(e)
+        ang = TouchdownOCP.angles_of(e)
         return np.column_stack([ang, self.levels[k]])
 
     def mean_controls(self, t0_s: float, dt_s: float, scenario: TouchdownScenario,
@@ -196,12 +213,10 @@ class TouchdownOptimum:
         the law's exactly and its impulse to the direction's curvature. (Sampling across a
         switch instead shifts it by up to half a sample: with 16 samples a step, 2 g of
         propellant and 1 cm/s at 10 s, 6 m at touchdown, measured.)"""
-        from ..common.quadrature import legendre_gauss
-
         t1_s = t0_s + dt_s
         edges = np.concatenate([[0.0], np.cumsum(self.durations_s)])
         cuts = np.concatenate([[t0_s], edges[(edges > t0_s) & (edges < t1_s)], [t1_s]])
-        x, w = legendre_gauss(int(n_gauss))
+        x, w = _legendre_gauss(int(n_gauss))
         ts, ws = [], []
         for a, b in zip(cuts[:-1], cuts[1:], strict=True):
             ts.append(a + (x + 1.0) * (b - a) / 2.0)
@@ -212,7 +227,7 @@ class TouchdownOptimum:
         vec = ((ws * u[:, 2])[:, None] * np.stack([np.sin(u[:, 0]), ca * np.cos(u[:, 1]),
                                                    ca * np.sin(u[:, 1])], axis=1)).sum(axis=0)
         thr = float(np.linalg.norm(vec))
-        ang = touchdown_ocp(scenario).angles_of((vec / thr)[None])[0]
+        ang = TouchdownOCP.angles_of((vec / thr)[None])[0]
         return np.array([ang[0], ang[1], thr])
 
     def guess(self, scenario: TouchdownScenario) -> PhasedGuess:

@@ -224,7 +224,8 @@ class TouchdownOCP(OCP):
         return -final_state[dyn.M3]
 
     # ---- numeric helpers -------------------------------------------------------------------
-    def angles_of(self, directions: np.ndarray) -> np.ndarray:
+    @staticmethod
+    def angles_of(directions: np.ndarray) -> np.ndarray:
         """Thrust elevation α and azimuth β (rad, β in [0, 2π)) of orbital-frame directions
         (n, 3) (the model's control angles)."""
         d = np.asarray(directions, dtype=float)

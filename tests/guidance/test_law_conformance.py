@@ -19,20 +19,22 @@ from optimizers.optimum import optimum_family
 
 PLANAR = ("LunarSoftLanding-v0", {"dt_s": 2.5})
 PINPOINT = ("LunarPinpointLanding-v2", {"dt_s": 2.0, "throttle_channel": True})
+TOUCHDOWN = ("LunarPinpointLanding-v3", {})
 SEEDS = (11, 12, 13)
 DECISIONS = 3
 
 #: law spec -> the envs it is checked on (every registered name appears: the test below
 #: fails when a new law is registered without a conformance entry)
 SPECS = {
-    "apollo": (PLANAR, PINPOINT),
-    "zem-zev": (PLANAR, PINPOINT),
-    "gravity-turn": (PLANAR, PINPOINT),
-    "open-loop": (PLANAR,),
-    "feedback": (PLANAR, PINPOINT),
+    "apollo": (PLANAR, PINPOINT, TOUCHDOWN),
+    "zem-zev": (PLANAR, PINPOINT, TOUCHDOWN),
+    "zem-zev:high_gate=0,low_gate=50": (TOUCHDOWN,),
+    "gravity-turn": (PLANAR, PINPOINT, TOUCHDOWN),
+    "open-loop": (PLANAR, TOUCHDOWN),
+    "feedback": (PLANAR, PINPOINT, TOUCHDOWN),
     "feedback:thrust_reserve=0.05,estimate_thrust=1": (PINPOINT,),
     "convex": (PLANAR,),
-    "random": (PLANAR, PINPOINT),
+    "random": (PLANAR, PINPOINT, TOUCHDOWN),
     "ppo:RUN": (PLANAR,),
     "ppo:RUN_HISTORY": (PLANAR,),
     "recurrent-ppo:RUN_LSTM": (PLANAR,),
