@@ -4,7 +4,9 @@ and the closed-loop expert (the optimum re-solved from the navigation solution).
 A :class:`BaselineFamily` per env family, registered in :data:`BASELINE_FAMILIES` by
 ``scenario.family``: ``planar`` (Pontryagin: the optimal thrust-angle history replayed,
 :class:`~guidance.laws.pontryagin_planar.PlanarReplanningLaw`) and ``pinpoint`` ([001]'s GPM
-optimum replayed, :class:`~guidance.laws.pontryagin_pinpoint.PinpointPontryaginExpert`). The
+optimum replayed, :class:`~guidance.laws.pontryagin_pinpoint.PinpointPontryaginExpert`) and
+``pinpoint_touchdown`` (the certified optimum replayed, no expert:
+:mod:`guidance.laws.touchdown_open_loop`). The
 ``open-loop`` and ``feedback`` law specs (:mod:`guidance.laws.feedback`) and the evaluation
 (:func:`guidance.evaluation.compare.baseline_laws`) fly them.
 """
@@ -74,6 +76,8 @@ BASELINE_FAMILIES: FamilyRegistry[BaselineFamily] = FamilyRegistry(
     "baseline", entry_point_group="lunar_env.baseline_families")
 BASELINE_FAMILIES.register("planar", PlanarBaselines)
 BASELINE_FAMILIES.register("pinpoint", PinpointBaselines)
+BASELINE_FAMILIES.register("pinpoint_touchdown",
+                           "guidance.laws.touchdown_open_loop:TouchdownBaselines")
 
 
 class PlanarOpenLoopLaw(GuidanceLaw):

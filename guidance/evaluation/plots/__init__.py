@@ -2,7 +2,8 @@
 
 A :class:`PlotFamily` per env family draws one case's optimum and one flown case on a
 trajectory axis and a control axis; :data:`PLOT_FAMILIES` holds them by ``scenario.family``
-(``planar`` and ``pinpoint``: :mod:`.planar`, :mod:`.pinpoint`).
+(``planar``, ``pinpoint`` and ``pinpoint_touchdown``: :mod:`.planar`, :mod:`.pinpoint`,
+:mod:`.touchdown`).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ PLOT_FAMILIES: FamilyRegistry[PlotFamily] = FamilyRegistry(
     "plot", entry_point_group="lunar_env.plot_families")
 PLOT_FAMILIES.register("planar", "guidance.evaluation.plots.planar:PlanarPlots")
 PLOT_FAMILIES.register("pinpoint", "guidance.evaluation.plots.pinpoint:PinpointPlots")
+PLOT_FAMILIES.register("pinpoint_touchdown", "guidance.evaluation.plots.touchdown:TouchdownPlots")
 
 
 def plot_comparison(report: dict[str, Any], path: str | Path) -> Path:
