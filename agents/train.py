@@ -195,6 +195,27 @@ def build_parser() -> argparse.ArgumentParser:
 # ----------------------------------------------------------------------------- training
 
 
+def _quick_expert_states(env_id: str, env_kwargs: dict[str, Any] | None) -> int:
+    """Cases the closed-loop expert flies in a quick run's evaluation: 2 (its full default, 20
+    or 200 re-planned flights, would outlast the quick training), none for an env family whose
+    baselines fly no expert by default (``default_expert_cases`` 0: ``LunarPinpointLanding-v3``,
+    whose expert is refused). Other Gymnasium ids: 2 (the evaluation refuses them anyway)."""
+    import gymnasium as gym
+
+    import lunar_env  # noqa: F401  (registers the ids)
+    from guidance.laws.baselines import BASELINE_FAMILIES
+
+    env = gym.make(env_id, **(env_kwargs or {}))  # checked by check_env before
+    try:
+        scenario = getattr(env.unwrapped, "scenario", None)
+    finally:
+        env.close()
+    if scenario is None or getattr(scenario, "family", None) not in BASELINE_FAMILIES.names():
+        return 2
+    default = BASELINE_FAMILIES.get(scenario.family).default_expert_cases
+    return 2 if default is None else min(2, int(default))
+
+
 def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, Any]]:
     """Merge YAML, profile and CLI overrides; return (hyperparameters, run arguments)."""
     profile = "quick" if args.quick else args.config
@@ -252,7 +273,7 @@ def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, A
     if run["eval_states"] is None:
         run["eval_states"] = 16 if profile == "quick" else 1000
     if run["eval_expert_states"] is None and profile == "quick":
-        run["eval_expert_states"] = 2
+        run["eval_expert_states"] = _quick_expert_states(args.env, hp.get("env_kwargs"))
     run["hyperparams_file"] = hp_file
     if run["seed"] is None:
         run["seed"] = int(np.random.default_rng().integers(0, 2**31 - 1))

@@ -2,7 +2,8 @@
 
 Each env family defines its own features (a :class:`FeatureFamily` registered in
 :data:`FEATURE_FAMILIES`): the planar soft landing's in :mod:`agents.features.planar`, the
-pinpoint landing's in :mod:`agents.features.pinpoint`. This module is the generic part: it
+pinpoint landing's in :mod:`agents.features.pinpoint`, the landing to touchdown's in
+:mod:`agents.features.touchdown`. This module is the generic part: it
 validates the names, asks the env's family for the features and their bounds, and wraps vec
 envs and policy inputs.
 
@@ -58,6 +59,7 @@ FEATURE_FAMILIES: FamilyRegistry[FeatureFamily] = FamilyRegistry(
     "observation-feature", entry_point_group="lunar_env.feature_families")
 FEATURE_FAMILIES.register("planar", "agents.features.planar:PlanarFeatures")
 FEATURE_FAMILIES.register("pinpoint", "agents.features.pinpoint:PinpointFeatures")
+FEATURE_FAMILIES.register("pinpoint_touchdown", "agents.features.touchdown:TouchdownFeatures")
 
 
 def validate_features(names: Sequence[str] | None) -> list[str]:

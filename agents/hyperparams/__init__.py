@@ -44,7 +44,9 @@ and its ``policy_kwargs`` hold sb3-contrib's ``lstm_hidden_size``, ``n_lstm_laye
 ``anneal_fraction``, ``n_trajectories``, ...), or absent. ``added_action_init``
 (``{action: [...], log_std: [...]}``) says how a run started by ``--init-from`` fills the action
 channels its initial policy lacks, e.g. a throttle channel
-(:func:`agents.rl.training.widen_action_head`).
+(:func:`agents.rl.training.widen_action_head`). ``initial_action`` (one number in [-1, 1]
+per action channel) is the mean action a new PPO run starts from
+(:func:`agents.rl.training.set_initial_action`).
 """
 
 from __future__ import annotations
@@ -72,7 +74,7 @@ PROFILE_SEPARATOR = "@"
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "noise_type", "noise_std",
             "env_kwargs", "curriculum", "error_curriculum", "obs_features", "reward_shaping",
             "critic_warmup_steps", "added_action_init",
-            "select_checkpoint", "seed_race", "history")
+            "select_checkpoint", "seed_race", "history", "initial_action")
 
 _ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU",
                 "gelu": "GELU", "silu": "SiLU"}

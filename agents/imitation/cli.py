@@ -201,6 +201,13 @@ def main(argv: list[str] | None = None) -> int:
             # roll-outs, the selection and every later load of the run fly the same env
             hp["env_kwargs"] = run_env_kwargs(args.env, dataset.meta.get("env_kwargs"),
                                               hp.get("env_kwargs"))
+            if args.mode == "dagger":  # the teacher, before a run directory exists
+                from agents.imitation.families import IMITATION_FAMILIES
+                from agents.imitation.teachers import parse_teacher
+                from lunar_env import get_scenario
+
+                IMITATION_FAMILIES.of(get_scenario(dataset.meta["scenario"])).check_teacher(
+                    parse_teacher(hp["dagger"].get("teacher")))
         from agents.common.runs import claim_run_dir
 
         try:  # both created atomically: concurrent runs never share a directory

@@ -40,7 +40,7 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     Raises
     ------
     ValueError
-        The teacher setting names no teacher.
+        The teacher setting names no teacher, or one the dataset's env family does not offer.
     """
     import torch as th
     from stable_baselines3 import PPO
@@ -49,8 +49,10 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     from agents.imitation.teachers import parse_teacher
 
     dg = hp["dagger"]
-    parse_teacher(dg.get("teacher"))
+    teacher = parse_teacher(dg.get("teacher"))
     ds, env_kwargs = load_run_dataset(run, hp.get("env_kwargs"))
+    # the family's own refusal (a teacher it cannot label with), before any training
+    IMITATION_FAMILIES.of(get_scenario(ds.meta["scenario"])).check_teacher(teacher)
     seed = int(run["seed"])
     th.manual_seed(seed)
     ckdir = run_dir / "checkpoints"

@@ -22,6 +22,12 @@ Potential (YAML ``reward_shaping: {potential: surface_speed, weight: w}``):
     2 km gate sphere and d the distance to the target: the same form and scale as the
     pinpoint env's terminal penalty.
 
+``touchdown_speeds_and_range`` (``LunarPinpointLanding-v3``)
+    Φ(s) = −w·(log(1 + v_v / 1 m/s) + log(1 + v_h / 1 m/s) + log(1 + d / 100 m)), v_v the
+    engine-off vertical speed at the landing surface, v_h the horizontal speed and d the
+    distance from the target of the lander's radial projection: the env's terminal term of an
+    episode truncated in state s, so Φ has the terminal penalty's form and scale.
+
 ``success_bonus`` (optional, ``reward_shaping: {..., success_bonus: auto}``)
     A terminal reward B paid when the env's own verdict calls the episode a success. It is not
     potential-based: it adds B to the return of every successful episode and nothing to the
@@ -32,7 +38,9 @@ Potential (YAML ``reward_shaping: {potential: surface_speed, weight: w}``):
     succeed (a 100 m miss: 1/200 per m) more than rescuing those just outside the verdict (a
     1 km miss: 1/1100 per m), while the evaluation counts only the verdict. ``auto``: B equals
     the env's terminal penalty at the verdict's boundary, log(1 + v_max/1 m/s) + log(1 +
-    miss_max/100 m) (3.58 for the pinpoint env's 5 m/s and 500 m): the worst success then ends
+    miss_max/100 m) (3.58 for the pinpoint env's 5 m/s and 500 m; for v3, whose verdict bounds
+    each speed component, log(1 + 3) + log(1 + 1.2) + log(1 + 100/100) = 2.87): the worst
+    success then ends
     with what a perfect landing ends with without the bonus (0); a number sets B directly.
 
 The potential is computed from the observation (altitude, radial and horizontal speed), so the
@@ -52,14 +60,18 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
 from agents.features import feature_constants
 from lunar_env.validation import require_number
 
-__all__ = ["PotentialShaping", "resolve_success_bonus", "surface_speed_m_s"]
+__all__ = ["PotentialShaping", "resolve_success_bonus", "surface_speed_m_s",
+           "touchdown_speeds_and_range"]
 
 #: every potential; which of them fit an env, :data:`FAMILY_POTENTIALS` says
-POTENTIALS = ("surface_speed", "gate_speed_and_range")
+POTENTIALS = ("surface_speed", "gate_speed_and_range", "touchdown_speeds_and_range")
 #: the potentials that fit each env family (``scenario.family``): the soft landing's surface
-#: speed, the pinpoint landing's gate speed and range
+#: speed, the pinpoint landing's gate speed and range, the landing to touchdown's vertical and
+#: horizontal speeds and range
 FAMILY_POTENTIALS: dict[str, tuple[str, ...]] = {"planar": ("surface_speed",),
-                                                 "pinpoint": ("gate_speed_and_range",)}
+                                                 "pinpoint": ("gate_speed_and_range",),
+                                                 "pinpoint_touchdown":
+                                                     ("touchdown_speeds_and_range",)}
 
 
 def gate_speed_and_range(obs: np.ndarray, consts: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -73,6 +85,22 @@ def gate_speed_and_range(obs: np.ndarray, consts: dict) -> tuple[np.ndarray, np.
     dist = np.sqrt(q["target_radial_m"] ** 2 + q["target_along_m"] ** 2
                    + q["target_cross_m"] ** 2)
     return v_gate, dist
+
+
+def touchdown_speeds_and_range(obs: np.ndarray, consts: dict
+                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Engine-off vertical speed at the landing surface (m/s), horizontal speed (m/s) and
+    distance from the target of the lander's radial projection on the surface (m), shape (B,)
+    each, from ``LunarPinpointLanding-v3`` observations (B, n_obs): what the env's terminal
+    term measures of an episode truncated now."""
+    q = consts["decode"](np.asarray(obs, dtype=np.float64))
+    h = np.maximum(q["altitude_m"], 0.0)
+    rs = consts["surface_radius_m"]
+    drop = 2.0 * consts["mu_m3_s2"] * (1.0 / rs - 1.0 / (rs + h))
+    v_vertical = np.sqrt(q["v_up_m_s"] ** 2 + drop)
+    v_horizontal = np.hypot(q["v_along_m_s"], q["v_cross_m_s"])
+    miss = np.hypot(q["along_m"], q["cross_m"]) * rs / (rs + h)
+    return v_vertical, v_horizontal, miss
 
 
 def surface_speed_m_s(obs: np.ndarray, consts: dict[str, float], surface_radius_m: float
@@ -131,6 +159,9 @@ class PotentialShaping(VecEnvWrapper):
         if self.potential == "gate_speed_and_range":
             v_gate, dist = gate_speed_and_range(obs, self.consts)
             return -self.weight * (np.log1p(v_gate) + np.log1p(dist / 100.0))
+        if self.potential == "touchdown_speeds_and_range":
+            v_vert, v_hor, miss = touchdown_speeds_and_range(obs, self.consts)
+            return -self.weight * (np.log1p(v_vert) + np.log1p(v_hor) + np.log1p(miss / 100.0))
         return -self.weight * np.log1p(surface_speed_m_s(obs, self.consts,
                                                          self.surface_radius_m))
 
@@ -163,8 +194,11 @@ def resolve_success_bonus(value: float | str | None, thresholds: dict[str, float
     if isinstance(value, str):
         if value != "auto":
             raise ValueError(f"success_bonus={value!r}; allowed: 'auto', a number >= 0 or null")
-        return float(np.log1p(thresholds["speed_m_s"])
-                     + np.log1p(thresholds.get("miss_m", 0.0) / 100.0))
+        miss = np.log1p(thresholds.get("miss_m", 0.0) / 100.0)
+        if "vertical_speed_m_s" in thresholds:  # a verdict on each component (v3)
+            return float(np.log1p(thresholds["vertical_speed_m_s"])
+                         + np.log1p(thresholds["horizontal_speed_m_s"]) + miss)
+        return float(np.log1p(thresholds["speed_m_s"]) + miss)
     b = require_number("success_bonus", value)
     if not (np.isfinite(b) and b >= 0):
         raise ValueError(f"success_bonus={value!r} must be 'auto', a finite number >= 0 or null")

@@ -28,7 +28,8 @@ from agents.common.runs import (
 from agents.hyperparams import resolve_algo_kwargs
 from lunar_env.validation import require_bool
 
-__all__ = ["train", "interrupt_on_sigterm", "make_training_env", "DEFAULT_ENV_ID"]
+__all__ = ["train", "interrupt_on_sigterm", "make_training_env", "set_initial_action",
+           "DEFAULT_ENV_ID"]
 
 DEFAULT_ENV_ID = "LunarSoftLanding-v0"
 #: the policy of a YAML entry without a ``policy`` key
@@ -241,6 +242,34 @@ def widen_action_head(weights: dict, target: dict, added: Any, source: str) -> d
     return out
 
 
+def set_initial_action(model, values: Any) -> None:
+    """Start a new PPO policy at the mean action ``values`` (the ``initial_action``
+    hyperparameter: one number in [-1, 1] per action channel): the action head's bias. SB3
+    initialises the head's weights orthogonally with gain 0.01, so the mean action is the bias
+    to ~0.1 over the whole input range, and the exploration noise is drawn around it.
+
+    Why: the mean action of an untrained policy is 0 in every channel; on an env whose throttle
+    channel maps [-1, 1] onto [throttle_min, 1], that is a 60 % throttle, too weak to brake
+    [001]'s 1.7 km/s descent, and PPO must first learn full thrust from landings it never sees
+    (``LunarPinpointLanding-v3``; measured in ``agents/hyperparams/ppo.yml``).
+
+    Raises ValueError for a policy without an action head (SAC, TD3) or values that are not one
+    finite number in [-1, 1] per channel."""
+    import torch
+
+    net = getattr(model.policy, "action_net", None)
+    if net is None or not hasattr(net, "bias"):
+        raise ValueError(f"initial_action={values!r}: only for PPO policies (an 'action_net' "
+                         "head)")
+    v = np.asarray(values, dtype=np.float64).reshape(-1)
+    n = int(net.bias.shape[0])
+    if len(v) != n or not np.all(np.isfinite(v)) or np.any(np.abs(v) > 1.0):
+        raise ValueError(f"initial_action={values!r}: needs {n} finite values in [-1, 1], one "
+                         "per action channel")
+    with torch.no_grad():
+        net.bias.copy_(torch.as_tensor(v, dtype=net.bias.dtype))
+
+
 def interrupt_on_sigterm(signum, frame) -> None:
     """SIGTERM handler that takes the Ctrl-C path (a checkpoint, then exit): raises
     KeyboardInterrupt."""
@@ -335,6 +364,12 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
         model = algo_class(algo)(hp.get("policy", DEFAULT_POLICY[algo]), venv, seed=seed,
                                   device=run.get("device", "cpu"), tensorboard_log=tb_dir,
                                   verbose=int(run.get("verbose", 0)), **kwargs)
+        if hp.get("initial_action") is not None:
+            if init is not None:
+                raise ValueError(f"initial_action={hp['initial_action']!r}: a run started by "
+                                 f"--init-from {run['init_from']} flies its policy's actions; "
+                                 "drop the key (hyperparameter initial_action=null)")
+            set_initial_action(model, hp["initial_action"])
         if init is not None:
             # the exploration noise (log_std) stays this run's log_std_init: a cloned policy
             # carries whatever its trainer left there

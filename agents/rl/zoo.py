@@ -22,9 +22,10 @@ Translation of an entry (:func:`zoo_entry`):
   (:func:`agents.rl.training.make_training_env`);
 - everything else the Zoo understands (``n_envs``, ``n_timesteps``, ``policy``, ``normalize``,
   ``env_kwargs``, ``lin_<x>`` schedules, ``noise_type``, algorithm arguments) is copied;
-- ``select_checkpoint``, ``seed_race`` and ``critic_warmup_steps`` (run-level features of
-  ``python train.py``: checkpoint selection, a race of two seeds, a held actor) have no Zoo
-  counterpart and are left out; the file's header names them.
+- ``select_checkpoint``, ``seed_race``, ``critic_warmup_steps``, ``added_action_init`` and
+  ``initial_action`` (run-level features of ``python train.py``: checkpoint selection, a race
+  of two seeds, a held actor, a widened or biased action head) have no Zoo counterpart and are
+  left out; the file's header names them.
 
 Profiles (``<env id>@quick``) are merged into ``<algo>_quick.yml`` (the Zoo reads one entry per
 env id). ``recurrent-ppo`` is the Zoo's ``ppo_lstm`` (sb3-contrib's ``RecurrentPPO``; the Zoo
@@ -53,7 +54,8 @@ __all__ = ["lunar_vec_env", "TrainingOnly", "zoo_entry", "zoo_hyperparams", "ren
 #: profiles for which a Zoo file is generated (None: the base entries)
 ZOO_PROFILES: tuple[str | None, ...] = (None, "quick")
 #: run-level keys of ``python train.py`` the Zoo has no counterpart for
-LEFT_OUT_KEYS = ("select_checkpoint", "seed_race", "critic_warmup_steps", "added_action_init")
+LEFT_OUT_KEYS = ("select_checkpoint", "seed_race", "critic_warmup_steps", "added_action_init",
+                 "initial_action")
 #: keys handed to :func:`lunar_vec_env`
 _WRAPPER_KEYS = ("obs_features", "reward_shaping", "curriculum", "history")
 #: the Zoo's name of an algorithm whose name here differs (``--algo`` of ``rl_zoo3.train``)

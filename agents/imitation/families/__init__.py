@@ -3,9 +3,10 @@ labels.
 
 An :class:`ImitationFamily` per env family, registered in :data:`IMITATION_FAMILIES` by
 ``scenario.family``: ``planar`` (:mod:`.planar`: Pontryagin optima, the re-planning expert as
-teacher) and ``pinpoint`` (:mod:`.pinpoint`: the compiled Pontryagin feedback expert, or any law
-spec, as teacher). The generic drivers are :func:`agents.imitation.dataset.generate` and
-:func:`agents.imitation.dagger.train_dagger`.
+teacher), ``pinpoint`` (:mod:`.pinpoint`: the compiled Pontryagin feedback expert, or any law
+spec, as teacher) and ``pinpoint_touchdown`` (:mod:`.touchdown`: the certified optima flown in
+the env; law specs only as teacher). The generic drivers are
+:func:`agents.imitation.dataset.generate` and :func:`agents.imitation.dagger.train_dagger`.
 """
 
 from __future__ import annotations
@@ -136,6 +137,12 @@ class ImitationFamily(ABC):
         default). Raises ValueError naming an option the family does not accept.
         """
 
+    def check_teacher(self, teacher) -> None:
+        """Refuse a DAgger teacher (:class:`agents.imitation.teachers.Teacher`) the family
+        cannot label with, before anything is trained or flown (ValueError); every teacher is
+        accepted by default."""
+        return None
+
     @abstractmethod
     def dagger_iteration(self, scenario, request: DaggerRequest
                          ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
@@ -154,3 +161,5 @@ IMITATION_FAMILIES: FamilyRegistry[ImitationFamily] = FamilyRegistry(
     "imitation", entry_point_group="lunar_env.imitation_families")
 IMITATION_FAMILIES.register("planar", "agents.imitation.families.planar:PlanarImitation")
 IMITATION_FAMILIES.register("pinpoint", "agents.imitation.families.pinpoint:PinpointImitation")
+IMITATION_FAMILIES.register("pinpoint_touchdown",
+                            "agents.imitation.families.touchdown:TouchdownImitation")

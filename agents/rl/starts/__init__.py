@@ -2,8 +2,9 @@
 perturbation (:class:`agents.rl.curriculum.OptimalStartCurriculum`).
 
 A :class:`StartFamily` per env family, registered in :data:`START_FAMILIES` by ``scenario.family``:
-``planar`` (:mod:`.planar`, Pontryagin optima) and ``pinpoint`` (:mod:`.pinpoint`, the compiled
-minimum-fuel extremals).
+``planar`` (:mod:`.planar`, Pontryagin optima), ``pinpoint`` (:mod:`.pinpoint`, the compiled
+minimum-fuel extremals) and ``pinpoint_touchdown`` (:mod:`.touchdown`, the certified optima
+flown in the env).
 """
 
 from __future__ import annotations
@@ -42,3 +43,4 @@ START_FAMILIES: FamilyRegistry[StartFamily] = FamilyRegistry(
     "start-state", entry_point_group="lunar_env.start_families")
 START_FAMILIES.register("planar", "agents.rl.starts.planar:PlanarStarts")
 START_FAMILIES.register("pinpoint", "agents.rl.starts.pinpoint:PinpointStarts")
+START_FAMILIES.register("pinpoint_touchdown", "agents.rl.starts.touchdown:TouchdownStarts")

@@ -1,0 +1,189 @@
+"""RL on ``LunarPinpointLanding-v3``: the touchdown family's observation features, shaping
+potential and curriculum starts, ``train.py --quick`` end to end, and its RL Zoo entry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from agents import train as tr
+from agents.common.vec_env import make_sb3_vec_env
+from agents.features import (
+    FEATURE_FAMILIES,
+    ObsFeatureWrapper,
+    augment_observation,
+    feature_constants,
+    validate_features,
+)
+from agents.features.touchdown import TOUCHDOWN_FEATURE_WIDTHS
+from agents.rl.shaping import FAMILY_POTENTIALS, PotentialShaping, resolve_success_bonus
+from agents.rl.starts import START_FAMILIES
+from lunar_env import get_scenario
+
+ENV_ID = "LunarPinpointLanding-v3"
+SC = get_scenario("peng2012_touchdown")
+ALL = list(TOUCHDOWN_FEATURE_WIDTHS)
+
+
+@pytest.fixture(scope="module")
+def pool():
+    """Curriculum starts along two certified optima (cached on disk), 21 points each."""
+    return START_FAMILIES.get("pinpoint_touchdown").start_pool(SC, 2, 1, n_points=21,
+                                                               progress=False)
+
+
+def test_features_finite_on_the_observation_box_and_the_imu_channels():
+    for sensors in ((), ("imu",)):
+        env = make_sb3_vec_env(ENV_ID, 1, seed=0, sensors=sensors).native
+        consts = feature_constants(env)
+        lo = env.single_observation_space.low.astype(np.float64)
+        hi = env.single_observation_space.high.astype(np.float64)
+        obs = np.random.default_rng(0).uniform(lo, hi, size=(2000, len(lo)))
+        obs[:4], obs[4:8] = lo, hi
+        out = augment_observation(obs, consts, ALL)
+        assert out.shape == (2000, len(lo) + sum(TOUCHDOWN_FEATURE_WIDTHS.values()))
+        assert np.isfinite(out).all()
+        np.testing.assert_array_equal(out[:, :len(lo)], obs.astype(np.float32))
+        flo, fhi = FEATURE_FAMILIES.get("pinpoint_touchdown").bounds(ALL)
+        assert np.all(out[:, len(lo):] >= np.array(flo) - 1e-6)
+        assert np.all(out[:, len(lo):] <= np.array(fhi) + 1e-6)
+
+
+def test_features_physics_and_the_nominal_profile(pool):
+    """On the nominal optimum's own states the reference profile deviation is ~0; the stop
+    point and stopping ratio follow their definitions."""
+    env = make_sb3_vec_env(ENV_ID, 1, seed=0).native
+    c = feature_constants(env)
+    from optimizers.optimum.touchdown import touchdown_ocp
+
+    x0 = touchdown_ocp(SC).x0_nd
+    f = augment_observation(env.observation_from_state(x0[None], np.zeros(1)), c,
+                            ["reference_profile"])[0, 8:]
+    assert np.abs(f).max() < 1e-3  # the profile starts at the nominal start, at t = 0
+    # a 500 kg lander 1000 m above the target, falling at 20 m/s, at rest horizontally
+    target = touchdown_ocp(SC).target_position_nd
+    s = SC.scaling()
+    r = float(np.linalg.norm(target)) * s.length_m
+    up = target / np.linalg.norm(target)
+    y = np.concatenate([up * (r + 1000.0) / s.length_m, up * -20.0 / s.velocity_m_s,
+                        [500.0 / s.mass_kg]])
+    feats = augment_observation(env.observation_from_state(y[None], np.zeros(1)), c,
+                                ["stopping_ratio", "stop_point"])[0, 8:]
+    a = c["thrust_n"] / 500.0  # full thrust over the 500 kg lander
+    assert feats[0] == pytest.approx(np.log1p(400.0 / (2 * a * 1000.0)), rel=1e-4)
+    g = c["mu_m3_s2"] / (r + 1000.0) ** 2  # gravity where the lander is
+    tau = 20.0 / (a - g)  # straight down: thrust minus gravity stops it
+    stop_up = -1000.0 + 20.0 * tau / 2  # target − stop point, up
+    assert feats[1] == pytest.approx(np.sign(stop_up) * np.log1p(abs(stop_up) / 10) / 8,
+                                     rel=1e-4)
+    assert feats[4] == pytest.approx(tau / 100.0, rel=1e-4)
+
+
+def test_pinpoint_only_features_are_refused_with_the_allowed_names():
+    env = make_sb3_vec_env(ENV_ID, 1, seed=0).native
+    c = feature_constants(env)
+    assert validate_features(["fine_range"]) == ["fine_range"]  # a name of some family
+    with pytest.raises(ValueError, match="not defined for LunarPinpointLanding-v3"):
+        augment_observation(np.zeros((1, 8)), c, ["fine_range"])
+    wrapped = ObsFeatureWrapper(make_sb3_vec_env(ENV_ID, 2, seed=0), ALL)
+    assert wrapped.observation_space.shape == (8 + 15,)
+
+
+def test_shaping_potential_is_the_terminal_term_of_a_truncation(pool):
+    """Φ(s) = −(the env's terminal term of an episode truncated at s), along an optimal
+    flight; the success bonus is the term at the verdict's boundary."""
+    states, times = pool
+    venv = make_sb3_vec_env(ENV_ID, 1, seed=0)
+    shaped = PotentialShaping(venv, gamma=0.998, potential="touchdown_speeds_and_range",
+                              success_bonus="auto")
+    task = venv.native.task
+    y = states[0, [0, 10, 18, 20]]
+    touched = np.zeros(len(y), dtype=bool)
+    speed, miss = task.landing_metrics(y, touched)
+    want = -task.terminal_penalty(y, speed, miss, touched)
+    got = shaped.phi(venv.native.observation_from_state(y, times[0, [0, 10, 18, 20]]))
+    np.testing.assert_allclose(got, want, rtol=2e-3, atol=2e-3)
+    assert shaped.success_bonus == pytest.approx(np.log(4.0) + np.log(2.2) + np.log(2.0))
+    assert resolve_success_bonus("auto", {"speed_m_s": 5.0, "miss_m": 500.0}) == \
+        pytest.approx(np.log(6.0) + np.log(6.0))
+    assert FAMILY_POTENTIALS["pinpoint_touchdown"] == ("touchdown_speeds_and_range",)
+    with pytest.raises(ValueError, match="does not fit this env"):
+        PotentialShaping(venv, gamma=0.99, potential="gate_speed_and_range")
+
+
+def test_start_pool_follows_the_optimal_landings(pool):
+    states, times = pool
+    assert states.shape == (2, 21, 7) and times.shape == (2, 21)
+    assert np.all(np.diff(times, axis=1) > 0) and np.all(times[:, 0] == 0.0)
+    from optimizers.optimum.touchdown import touchdown_ocp
+
+    r_surface = float(np.linalg.norm(touchdown_ocp(SC).target_position_nd))
+    h = np.linalg.norm(states[..., :3], axis=2) - r_surface
+    assert np.all(h > 0) and h[:, -1].max() * SC.scaling().length_m < 60.0  # near touchdown
+    fam = START_FAMILIES.get("pinpoint_touchdown")
+    sig = fam.start_noise_nd(SC, {"position_m": 1000.0, "velocity_m_s": 2.0})
+    late = states[:, -1]
+    out = fam.perturb_starts(np.repeat(late, 200, axis=0), sig, np.random.default_rng(0))
+    h0 = np.repeat(h[:, -1], 200)
+    h1 = np.linalg.norm(out[:, :3], axis=1) - r_surface
+    assert np.all(h1 >= 0.5 * h0 - 1e-12) and np.any(h1 > h0)
+
+
+def test_quick_train_end_to_end(tmp_path, capsys):
+    """``train.py --env LunarPinpointLanding-v3 --quick`` (a tiny step count): trains, selects,
+    evaluates against the optimiser baseline and prints the table; no closed-loop expert."""
+    run_dir = tmp_path / "run"
+    rc = tr.main(["--env", ENV_ID, "--quick", "--no-progress", "--torch-threads", "1",
+                  "--seed", "3", "--run-dir", str(run_dir), "-n", "512", "--n-envs", "4",
+                  "--eval-states", "2", "--no-tensorboard", "--hyperparams",
+                  "seed_race=null", "n_steps=64", "batch_size=128",
+                  "curriculum.n_trajectories=2", "select_checkpoint.states=1"])
+    assert rc == 0
+    args = yaml.safe_load((run_dir / "args.yml").read_text())
+    hp = yaml.safe_load((run_dir / "config.yml").read_text())
+    assert args["eval_expert_states"] == 0 and hp["obs_features"] == ALL
+    assert (run_dir / "selection.yml").exists() and (run_dir / "model.zip").exists()
+    out = capsys.readouterr().out
+    assert "| PPO (run) | 2 |" in out and "| optimum, open loop | 2 |" in out
+    assert "| random | 2 |" in out and "feedback" not in out
+
+
+def test_zoo_entry_of_v3_carries_the_wrappers():
+    from agents.rl.zoo import render_zoo_yaml, zoo_hyperparams, zoo_path
+
+    for profile in (None, "quick"):
+        entry = zoo_hyperparams("ppo", profile)[ENV_ID]
+        wrapper = entry["vec_env_wrapper"][0]["agents.rl.zoo.lunar_vec_env"]
+        assert wrapper["obs_features"] == ALL
+        assert wrapper["reward_shaping"]["potential"] == "touchdown_speeds_and_range"
+        assert wrapper["curriculum"]["pool_seed"] == 1
+        assert "seed_race" not in entry and "select_checkpoint" not in entry
+        assert zoo_path("ppo", profile).read_text() == render_zoo_yaml("ppo", profile)
+
+
+def test_initial_action_sets_the_mean_action_of_a_new_ppo_policy():
+    from stable_baselines3 import PPO
+
+    from agents.hyperparams import RUN_KEYS
+    from agents.rl.training import set_initial_action
+
+    venv = make_sb3_vec_env(ENV_ID, 2, seed=0)
+    model = PPO("MlpPolicy", venv, n_steps=8, batch_size=8, seed=0, device="cpu")
+    obs = np.random.default_rng(0).uniform(-3, 3, size=(64, 8)).astype(np.float32)
+    before, _ = model.predict(obs, deterministic=True)
+    assert np.abs(before).max() < 0.2  # an untrained head: ~0 (a 60 % throttle)
+    set_initial_action(model, [0.0, 0.0, 1.0])
+    after, _ = model.predict(obs, deterministic=True)
+    np.testing.assert_allclose(after, np.tile([0.0, 0.0, 1.0], (64, 1)), atol=0.2)
+    assert after[:, 2].min() > 0.8
+    for bad in ([0.0, 1.0], [0.0, 0.0, 1.5], [0.0, 0.0, float("nan")]):
+        with pytest.raises(ValueError, match="one per action channel"):
+            set_initial_action(model, bad)
+    assert "initial_action" in RUN_KEYS
+
+
+def test_quick_runs_fly_no_expert_where_the_family_has_none():
+    assert tr._quick_expert_states(ENV_ID, {"dt_s": 2.0}) == 0
+    assert tr._quick_expert_states("LunarPinpointLanding-v2", None) == 2
+    assert tr._quick_expert_states("LunarSoftLanding-v0", None) == 2
