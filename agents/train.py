@@ -196,10 +196,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _quick_expert_states(env_id: str, env_kwargs: dict[str, Any] | None) -> int:
-    """Cases the closed-loop expert flies in a quick run's evaluation: 2 (its full default, 20
-    or 200 re-planned flights, would outlast the quick training), none for an env family whose
-    baselines fly no expert by default (``default_expert_cases`` 0: ``LunarPinpointLanding-v3``,
-    whose expert is refused). Other Gymnasium ids: 2 (the evaluation refuses them anyway)."""
+    """Cases the closed-loop expert flies in a quick run's evaluation: the family's
+    ``quick_expert_cases`` (2; none on ``LunarPinpointLanding-v3``, whose re-planned landing
+    costs ~1 min), at most its ``default_expert_cases`` (its full default, 20 or 200
+    re-planned flights, would outlast the quick training). Other Gymnasium ids: 2 (the
+    evaluation refuses them anyway)."""
     import gymnasium as gym
 
     import lunar_env  # noqa: F401  (registers the ids)
@@ -212,8 +213,10 @@ def _quick_expert_states(env_id: str, env_kwargs: dict[str, Any] | None) -> int:
         env.close()
     if scenario is None or getattr(scenario, "family", None) not in BASELINE_FAMILIES.names():
         return 2
-    default = BASELINE_FAMILIES.get(scenario.family).default_expert_cases
-    return 2 if default is None else min(2, int(default))
+    family = BASELINE_FAMILIES.get(scenario.family)
+    quick = int(family.quick_expert_cases)
+    default = family.default_expert_cases
+    return quick if default is None else min(quick, int(default))
 
 
 def _resolve_args(args: argparse.Namespace) -> tuple[dict[str, Any], dict[str, Any]]:

@@ -29,6 +29,8 @@ class BaselineFamily(ABC):
 
     #: cases the family's closed-loop expert flies in an evaluation by default (None: all)
     default_expert_cases: int | None = None
+    #: cases it flies in a quick run's evaluation (``train.py --quick``)
+    quick_expert_cases: int = 2
 
     @abstractmethod
     def expert_law(self, scenario) -> GuidanceLaw:

@@ -132,7 +132,8 @@ def test_start_pool_follows_the_optimal_landings(pool):
 
 def test_quick_train_end_to_end(tmp_path, capsys):
     """``train.py --env LunarPinpointLanding-v3 --quick`` (a tiny step count): trains, selects,
-    evaluates against the optimiser baseline and prints the table; no closed-loop expert."""
+    evaluates against the optimiser baseline and prints the table; no closed-loop expert (one
+    re-planned landing outlasts the quick training)."""
     run_dir = tmp_path / "run"
     rc = tr.main(["--env", ENV_ID, "--quick", "--no-progress", "--torch-threads", "1",
                   "--seed", "3", "--run-dir", str(run_dir), "-n", "512", "--n-envs", "4",
@@ -183,7 +184,7 @@ def test_initial_action_sets_the_mean_action_of_a_new_ppo_policy():
     assert "initial_action" in RUN_KEYS
 
 
-def test_quick_runs_fly_no_expert_where_the_family_has_none():
+def test_quick_runs_fly_no_expert_where_it_outlasts_the_training():
     assert tr._quick_expert_states(ENV_ID, {"dt_s": 2.0}) == 0
     assert tr._quick_expert_states("LunarPinpointLanding-v2", None) == 2
     assert tr._quick_expert_states("LunarSoftLanding-v0", None) == 2
