@@ -39,16 +39,18 @@ key              meaning                                                       d
 ===============  ============================================================  ==========
 ``phased``       1/0: fly Apollo's phases (braking, approach, terminal         1 (v3)
                  descent); 0 aims at the site directly
-``high_gate``    height of the high gate (m): 0 (none) or in (low_gate, 10000]  2000
-``hg_angle``     the high gate's elevation seen from the low gate (°) ∈ [2, 45]  10
-``hg_speed``     speed at the high gate (m/s) ∈ (0, 1000]                       250
-``low_gate``     height of the low gate above the site (m) ∈ [5, 500]           15
-``rate``         terminal descent's rate of descent (m/s) ∈ [0.2, 2.9]          1
-``switch``       t_go (s) ∈ [0.5, 20] at which a gate counts as reached         2
-``rate_tau``     time constant of the rate-of-descent loop (s) ∈ [0.5, 20]      2
-``h_tau``        time constant of the horizontal-velocity nulling (s)           3
+``high_gate``    height of the high gate (m): 0 (none) or in                   2000
+                 (low_gate, 10000]
+``hg_angle``     the high gate's elevation seen from the low gate (°)          10
+                 ∈ [2, 45]
+``hg_speed``     speed at the high gate (m/s) ∈ (0, 1000]                      250
+``low_gate``     height of the low gate above the site (m) ∈ [5, 500]          15
+``rate``         terminal descent's rate of descent (m/s) ∈ [0.2, 2.9]         1
+``switch``       t_go (s) ∈ [0.5, 20] at which a gate counts as reached        2
+``rate_tau``     time constant of the rate-of-descent loop (s) ∈ [0.5, 20]     2
+``h_tau``        time constant of the horizontal-velocity nulling (s)          3
                  ∈ [0.5, 30]
-``tilt``         largest tilt from the vertical in terminal descent (°)         45
+``tilt``         largest tilt from the vertical in terminal descent (°)        45
                  ∈ [0, 60]
 ===============  ============================================================  ==========
 
