@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import re
 import shlex
 import shutil
 import subprocess
@@ -40,6 +41,23 @@ def _console_scripts() -> set[str]:
     return set(data["project"].get("scripts", {}))
 
 
+def _installed_by(commands: list[list[str]]) -> set[str]:
+    """The distributions that ``pip install -e ".[EXTRA,...]"`` among ``commands`` installs
+    from the project's extras (lower-case names, without version bounds)."""
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))[
+        "project"].get("optional-dependencies", {})
+    names: set[str] = set()
+    for words in commands:
+        if words[0].removeprefix(VENV_BIN) != "pip" or "install" not in words:
+            continue
+        for w in words:
+            if w.startswith(".[") and w.endswith("]"):
+                for extra in w[2:-1].split(","):
+                    for req in extras.get(extra.strip(), []):
+                        names.add(re.split(r"[\s<>=!~;\[]", req, maxsplit=1)[0].lower())
+    return names
+
+
 def _commands(line: str) -> list[list[str]]:
     """The simple commands of one shell line, as words (comments dropped)."""
     lexer = shlex.shlex(line, posix=True, punctuation_chars=True)
@@ -54,14 +72,17 @@ def _commands(line: str) -> list[list[str]]:
     return [c for c in out if c]
 
 
-def _missing(words: list[str], scripts: set[str]) -> str | None:
-    """Why the command ``words`` does not start with something that exists, or None."""
+def _missing(words: list[str], scripts: set[str], installed: set[str] = frozenset()
+             ) -> str | None:
+    """Why the command ``words`` does not start with something that exists, or None; a module
+    of a distribution the same line installs (``installed``) counts as existing."""
     name = words[0].removeprefix(VENV_BIN)
     if name in ("python", "python3"):
         if words[1:2] == ["-m"]:
             module = words[2] if len(words) > 2 else ""
-            return None if module and importlib.util.find_spec(module) else \
-                f"no module {module!r}"
+            top = module.split(".")[0].lower()
+            return None if module and (importlib.util.find_spec(module) or top in installed) \
+                else f"no module {module!r}"
         script = words[1] if len(words) > 1 else ""
         return None if script.endswith(".py") and (ROOT / script).is_file() else \
             f"no script {script!r}"
@@ -106,9 +127,11 @@ def test_every_shell_command_starts_with_something_that_exists():
     n = 0
     for body in blocks:
         for line in shell_commands(body):
-            for words in _commands(line):
+            commands = _commands(line)
+            installed = _installed_by(commands)
+            for words in commands:
                 n += 1
-                why = _missing(words, scripts)
+                why = _missing(words, scripts, installed)
                 if why:
                     problems.append(f"{line}: {why}")
     assert n > 10, n
@@ -123,3 +146,13 @@ def test_the_checker_of_commands_refuses_what_does_not_exist():
     assert _missing([".venv/bin/python", "train.py"], scripts) is None
     assert _missing(["lunar", "dataset"], scripts) is None
     assert _commands("a x && b -y | c # d && e") == [["a", "x"], ["b", "-y"], ["c"]]
+
+
+def test_a_missing_module_counts_only_where_the_same_line_installs_its_extra():
+    line = '.venv/bin/pip install -e ".[docs]" && .venv/bin/python -m sphinx_not_a_module'
+    commands = _commands(line)
+    assert _missing(commands[1], set(), _installed_by(commands)) == \
+        "no module 'sphinx_not_a_module'"
+    assert "sphinx" in _installed_by(commands)
+    assert _missing(["python", "-m", "sphinx"], set(), {"sphinx"}) is None
+    assert _installed_by(_commands(".venv/bin/python -m sphinx")) == set()
