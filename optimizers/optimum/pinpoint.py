@@ -17,16 +17,13 @@ nearest-neighbour chain, on workers or an executor) is
 
 from __future__ import annotations
 
-import hashlib
-import json
-import os
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
 from optimizers.optimum import OptimumFamily, PerCaseOptimum, PlantOptimumFuel, plant_scenario
+from optimizers.optimum.cache import cache_key, cache_root, cached_optima
 from optimizers.transcription.batch import (
     GATE_CLEARANCE,
     N_RANDOM_RETRIES,
@@ -50,39 +47,13 @@ CACHE_FORMAT = 3
 
 def default_cache_dir() -> Path:
     """``$LUNAR_CACHE_DIR/pinpoint_optimum`` (default ``~/.cache/lunar-descent-guidance``)."""
-    root = os.environ.get("LUNAR_CACHE_DIR") or Path.home() / ".cache" / "lunar-descent-guidance"
-    return Path(root) / "pinpoint_optimum"
+    return cache_root("pinpoint_optimum")
 
 
 def _cache_key(scenario, x0_nd: np.ndarray) -> str:
-    h = hashlib.sha256()
-    h.update(json.dumps({"format": CACHE_FORMAT, "options": SOLVER_OPTIONS,
-                         "retries": N_RANDOM_RETRIES, "gate_floor": True,
-                         "clearance": GATE_CLEARANCE},
-                        sort_keys=True).encode())
-    h.update(repr(scenario).encode())
-    h.update(np.ascontiguousarray(x0_nd, dtype=np.float64).tobytes())
-    return h.hexdigest()[:40]
-
-
-def _load(path: Path) -> PinpointOptimum | None:
-    try:
-        with np.load(path, allow_pickle=False) as d:
-            return PinpointOptimum.from_arrays(d)
-    except (OSError, KeyError, ValueError):
-        return None  # unreadable or foreign file: solve again (and overwrite it)
-
-
-def _store(path: Path, opt: PinpointOptimum) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.npz", dir=path.parent)
-    os.close(fd)
-    try:
-        np.savez(tmp, **opt.to_arrays())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    return cache_key({"format": CACHE_FORMAT, "options": SOLVER_OPTIONS,
+                      "retries": N_RANDOM_RETRIES, "gate_floor": True,
+                      "clearance": GATE_CLEARANCE}, scenario, x0_nd)
 
 
 def pinpoint_optima(scenario, states_nd, *, workers: int = 1,
@@ -118,20 +89,10 @@ def pinpoint_optima(scenario, states_nd, *, workers: int = 1,
     if int(workers) < 1:
         raise ValueError(f"workers = {workers!r} must be >= 1")
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    paths: list[Path | None] = [cache / f"{_cache_key(scenario, x)}.npz" if use_cache else None
-                                for x in states]
-    results: list[PinpointOptimum | None] = [None] * len(states)
-    for i, p in enumerate(paths):
-        if p is not None and p.exists():
-            results[i] = _load(p)
-    todo = [i for i, r in enumerate(results) if r is None]
-    if todo:
-        solved = solve_many(scenario, states[todo], n_workers=workers, executor=executor,
-                            progress=progress, store=_store if use_cache else None,
-                            store_keys=[paths[i] for i in todo] if use_cache else None)
-        for i, opt in zip(todo, solved, strict=True):
-            results[i] = opt
-    return results  # type: ignore[return-value]
+    paths = [cache / f"{_cache_key(scenario, x)}.npz" if use_cache else None for x in states]
+    return cached_optima(states, paths, PinpointOptimum,
+                         lambda rows, **kw: solve_many(scenario, rows, n_workers=workers,
+                                                  executor=executor, progress=progress, **kw))
 
 
 class PinpointOptimumFamily(OptimumFamily):

@@ -30,11 +30,7 @@ difference 2e-14; replays within 3e-7 m and 3e-10 m/s of the target.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
-import os
-import tempfile
 import time
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -45,6 +41,7 @@ import numpy as np
 
 from lunar_env.scenarios import TouchdownScenario
 
+from ..common.warm_chain import solve_along_chain
 from ..indirect.touchdown import ARC_STEPS, TouchdownShooting
 from ..indirect.touchdown import replay as replay_extremal
 from ..problems.touchdown import MAX_MIN_MAX, TouchdownOCP
@@ -59,6 +56,7 @@ from ..transcription.phased_gpm import (
 )
 from ..transcription.phased_gpm import replay as replay_collocation
 from . import OptimumFamily, PerCaseOptimum, PlantOptimumFuel
+from .cache import cache_key, cache_root, cached_optima
 
 __all__ = ["TouchdownOptimum", "TouchdownOptimumFamily", "solve_touchdown_case",
            "solve_touchdown_many", "touchdown_optima", "touchdown_ocp", "default_cache_dir",
@@ -366,21 +364,6 @@ def _certify(ocp, shooting, direct: PhasedSolution, x0: np.ndarray, engine: dict
 # ----------------------------------------------------------------------------- many cases
 
 
-def _solve_chain(scenario, states_nd: np.ndarray, store, store_keys) -> list[TouchdownOptimum]:
-    """Executor task: rows in the given order, each warm-started from the previous certified
-    one; ``store(store_keys[k], optimum)`` as soon as row k is solved."""
-    out = []
-    warm = None
-    for k, x0 in enumerate(states_nd):
-        opt = solve_touchdown_case(scenario, x0, warm)
-        if opt.success:
-            warm = opt
-        if store is not None:
-            store(store_keys[k], opt)
-        out.append(opt)
-    return out
-
-
 def solve_touchdown_many(scenario: TouchdownScenario, states_nd, *, n_workers: int = 1,
                          executor=None, progress: bool = True, store=None,
                          store_keys=None) -> list[TouchdownOptimum]:
@@ -395,54 +378,11 @@ def solve_touchdown_many(scenario: TouchdownScenario, states_nd, *, n_workers: i
         ``states_nd`` not of shape (n, 7), ``n_workers < 1``, or ``store`` without one key per
         row.
     """
-    states = pinpoint_states(states_nd)
-    if int(n_workers) < 1:
-        raise ValueError(f"n_workers = {n_workers!r} must be >= 1")
-    if store is not None and (store_keys is None or len(store_keys) != len(states)):
-        raise ValueError("store needs store_keys with one key per row of states_nd")
-    n = len(states)
-    if n == 0:
-        return []
-    order = nearest_neighbour_order(states)
-    keys = list(store_keys) if store is not None else [None] * n
-    results: list[TouchdownOptimum | None] = [None] * n
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=n, desc=f"touchdown optimum {scenario.name}", unit="case")
-    try:
-        n_work = min(int(n_workers), max(n // 8, 1))
-        if n_work == 1 and executor is None:
-            warm = None
-            for i in order:
-                opt = solve_touchdown_case(scenario, states[i], warm)
-                if opt.success:
-                    warm = opt
-                if store is not None:
-                    store(keys[i], opt)
-                results[i] = opt
-                if bar is not None:
-                    bar.update(1)
-        else:
-            from ..common.executor import run_chunks
-
-            n_split = max(executor.n_workers if executor is not None else n_work, 1) * 4
-            chunks = [c for c in np.array_split(order, min(n_split, n)) if len(c)]
-
-            def _collect(c, opts):
-                for i, opt in zip(c, opts, strict=True):
-                    results[i] = opt
-                if bar is not None:
-                    bar.update(len(c))
-
-            run_chunks(f"touchdown-{scenario.name}", chunks, _solve_chain,
-                       lambda c: (scenario, states[c], store, [keys[i] for i in c]),
-                       executor=executor, n_workers=n_work, on_chunk=_collect)
-    finally:
-        if bar is not None:
-            bar.close()
-    return results  # type: ignore[return-value]
+    return solve_along_chain(f"touchdown-{scenario.name}", solve_touchdown_case, scenario,
+                             pinpoint_states(states_nd), nearest_neighbour_order,
+                             n_workers=n_workers, executor=executor, progress=progress,
+                             desc=f"touchdown optimum {scenario.name}", store=store,
+                             store_keys=store_keys)
 
 
 # ----------------------------------------------------------------------------- cache
@@ -450,38 +390,11 @@ def solve_touchdown_many(scenario: TouchdownScenario, states_nd, *, n_workers: i
 
 def default_cache_dir() -> Path:
     """``$LUNAR_CACHE_DIR/touchdown_optimum`` (default ``~/.cache/lunar-descent-guidance``)."""
-    root = os.environ.get("LUNAR_CACHE_DIR") or Path.home() / ".cache" / "lunar-descent-guidance"
-    return Path(root) / "touchdown_optimum"
+    return cache_root("touchdown_optimum")
 
 
 def _cache_key(scenario, x0_nd: np.ndarray) -> str:
-    h = hashlib.sha256()
-    h.update(json.dumps({"format": CACHE_FORMAT, "settings": SOLVER_SETTINGS},
-                        sort_keys=True).encode())
-    h.update(repr(scenario).encode())
-    h.update(np.ascontiguousarray(x0_nd, dtype=np.float64).tobytes())
-    return h.hexdigest()[:40]
-
-
-def _load(path: Path) -> TouchdownOptimum | None:
-    try:
-        with np.load(path, allow_pickle=False) as d:
-            return TouchdownOptimum.from_arrays(d)
-    except (OSError, KeyError, ValueError):
-        return None  # unreadable or foreign file: solve again (and overwrite it)
-
-
-def _store(path: Path, opt: TouchdownOptimum) -> None:
-    """Write ``opt`` to ``path`` atomically (a temporary file renamed over it)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.npz", dir=path.parent)
-    os.close(fd)
-    try:
-        np.savez(tmp, **opt.to_arrays())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    return cache_key({"format": CACHE_FORMAT, "settings": SOLVER_SETTINGS}, scenario, x0_nd)
 
 
 def touchdown_optima(scenario: TouchdownScenario, states_nd, *, workers: int = 1,
@@ -514,19 +427,9 @@ def touchdown_optima(scenario: TouchdownScenario, states_nd, *, workers: int = 1
         raise ValueError(f"workers = {workers!r} must be >= 1")
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     paths = [cache / f"{_cache_key(scenario, x)}.npz" if use_cache else None for x in states]
-    results: list[TouchdownOptimum | None] = [None] * len(states)
-    for i, p in enumerate(paths):
-        if p is not None and p.exists():
-            results[i] = _load(p)
-    todo = [i for i, r in enumerate(results) if r is None]
-    if todo:
-        solved = solve_touchdown_many(
-            scenario, states[todo], n_workers=workers, executor=executor, progress=progress,
-            store=_store if use_cache else None,
-            store_keys=[paths[i] for i in todo] if use_cache else None)
-        for i, opt in zip(todo, solved, strict=True):
-            results[i] = opt
-    return results  # type: ignore[return-value]
+    return cached_optima(states, paths, TouchdownOptimum,
+                         lambda rows, **kw: solve_touchdown_many(scenario, rows, n_workers=workers,
+                                                  executor=executor, progress=progress, **kw))
 
 
 class TouchdownOptimumFamily(OptimumFamily):

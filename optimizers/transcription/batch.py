@@ -43,6 +43,7 @@ import numpy as np
 
 from lunar_env.scenarios import PinpointScenario
 
+from ..common.warm_chain import solve_along_chain
 from ..problems.pinpoint import PinpointOCP
 from .serial import ControlGuess, get_solver, random_guess
 
@@ -297,24 +298,6 @@ def nearest_neighbour_order(states_nd: np.ndarray) -> np.ndarray:
     return np.asarray(order)
 
 
-def _solve_chain(scenario: PinpointScenario, states_nd: np.ndarray,
-                 store: Callable[[Any, PinpointOptimum], None] | None,
-                 store_keys: Sequence | None) -> list[PinpointOptimum]:
-    """Executor task: solve rows in the given order, each warm-started from the previous
-    success; ``store(store_keys[k], optimum)`` as soon as row k is solved (an interrupted run
-    keeps what it solved)."""
-    out = []
-    warm = None
-    for k, x0 in enumerate(states_nd):
-        opt = solve_case(scenario, x0, warm)
-        if opt.success:
-            warm = opt
-        if store is not None:
-            store(store_keys[k], opt)
-        out.append(opt)
-    return out
-
-
 def pinpoint_states(states_nd) -> np.ndarray:
     """``states_nd`` as float64 rows of normalised pinpoint states, shape (n, 7).
 
@@ -368,51 +351,8 @@ def solve_many(scenario: PinpointScenario, states_nd, *, n_workers: int = 1, exe
         ``states_nd`` is not of shape (n, 7), ``n_workers < 1``, or ``store`` without one key
         per row.
     """
-    states = pinpoint_states(states_nd)
-    if int(n_workers) < 1:
-        raise ValueError(f"n_workers = {n_workers!r} must be >= 1")
-    if store is not None and (store_keys is None or len(store_keys) != len(states)):
-        raise ValueError("store needs store_keys with one key per row of states_nd")
-    n = len(states)
-    if n == 0:
-        return []
-    order = nearest_neighbour_order(states)
-    keys = list(store_keys) if store is not None else [None] * n
-    results: list[PinpointOptimum | None] = [None] * n
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=n, desc=f"per-case optimum {scenario.name}", unit="case")
-    try:
-        n_work = min(int(n_workers), max(n // 8, 1))
-        if n_work == 1 and executor is None:
-            warm = None
-            for i in order:  # one at a time so the bar moves; the warm start carries over
-                opt = solve_case(scenario, states[i], warm)
-                if opt.success:
-                    warm = opt
-                if store is not None:
-                    store(keys[i], opt)
-                results[i] = opt
-                if bar is not None:
-                    bar.update(1)
-        else:
-            from ..common.executor import run_chunks
-
-            n_split = max(executor.n_workers if executor is not None else n_work, 1) * 4
-            chunks = [c for c in np.array_split(order, min(n_split, n)) if len(c)]
-
-            def _collect(c, opts):
-                for i, opt in zip(c, opts, strict=True):
-                    results[i] = opt
-                if bar is not None:
-                    bar.update(len(c))
-
-            run_chunks(f"pinpoint-{scenario.name}", chunks, _solve_chain,
-                       lambda c: (scenario, states[c], store, [keys[i] for i in c]),
-                       executor=executor, n_workers=n_work, on_chunk=_collect)
-    finally:
-        if bar is not None:
-            bar.close()
-    return results  # type: ignore[return-value]
+    return solve_along_chain(f"pinpoint-{scenario.name}", solve_case, scenario,
+                             pinpoint_states(states_nd), nearest_neighbour_order,
+                             n_workers=n_workers, executor=executor, progress=progress,
+                             desc=f"per-case optimum {scenario.name}", store=store,
+                             store_keys=store_keys)
