@@ -27,6 +27,32 @@ _BOUNDS = {"log_altitude": (0.0, 2.0), "fine_range": (-2.0, 2.0),
            "reference_profile": (-20.0, 20.0), "stop_point": (-2.0, 10.0)}
 
 
+
+#: the features of a braking lander's stop, shared by the 3D families (:func:`stopping_columns`)
+STOPPING_FEATURES = ("stopping_ratio", "time_to_go", "fuel_margin")
+
+
+def stopping_columns(name: str, dist_m: np.ndarray, speed_m_s: np.ndarray,
+                     propellant_kg: np.ndarray, consts: dict) -> list[np.ndarray]:
+    """The columns of the feature ``name`` (one of :data:`STOPPING_FEATURES`) of landers
+    ``dist_m`` from the target at ``speed_m_s`` with ``propellant_kg`` (clipped at 0), the
+    engine of ``consts`` (``dry_mass_kg``, ``thrust_n``, ``exhaust_velocity_m_s``,
+    ``prop_nominal_kg``): the log stopping ratio v²/(2 a d); the time to stop v/a and to reach
+    the target d/v (100 s units); the propellant left after the rocket equation's Δv = v, over
+    the nominal propellant."""
+    m = consts["dry_mass_kg"] + propellant_kg
+    a_thrust = consts["thrust_n"] / m
+    if name == "stopping_ratio":
+        ratio = speed_m_s ** 2 / (2.0 * a_thrust * np.maximum(dist_m, 1.0))
+        return [np.clip(np.log1p(ratio), 0.0, 8.0)]
+    if name == "time_to_go":
+        return [np.clip(speed_m_s / a_thrust / 100.0, 0.0, 10.0),
+                np.clip(dist_m / np.maximum(speed_m_s, 1.0) / 100.0, 0.0, 10.0)]
+    if name == "fuel_margin":
+        need = m * -np.expm1(-speed_m_s / consts["exhaust_velocity_m_s"])
+        return [(propellant_kg - need) / consts["prop_nominal_kg"]]
+    raise ValueError(f"{name!r} is not one of {STOPPING_FEATURES}")
+
 def pinpoint_feature_constants(env) -> dict:
     """What the pinpoint features need besides the env's physical constants and decoding: the
     scenario and the observation map (for :func:`reference_profile`)."""
@@ -136,8 +162,6 @@ def augment_pinpoint(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np.
     dist = np.sqrt(np.sum(d * d, axis=1))
     speed = np.sqrt(np.sum(vel * vel, axis=1))
     prop = np.maximum(q["propellant_kg"], 0.0)
-    m = consts["dry_mass_kg"] + prop
-    a_thrust = consts["thrust_n"] / m
     cols: list[np.ndarray] = []
     for name in names:
         if name == "log_altitude":
@@ -146,15 +170,8 @@ def augment_pinpoint(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np.
             cols += [np.sign(d[:, j]) * np.log1p(np.abs(d[:, j])) / 13.0 for j in range(3)]
         elif name == "fine_velocity":
             cols += [np.sign(vel[:, j]) * np.log1p(np.abs(vel[:, j])) / 7.5 for j in range(3)]
-        elif name == "stopping_ratio":
-            ratio = speed ** 2 / (2.0 * a_thrust * np.maximum(dist, 1.0))
-            cols.append(np.clip(np.log1p(ratio), 0.0, 8.0))
-        elif name == "time_to_go":
-            cols.append(np.clip(speed / a_thrust / 100.0, 0.0, 10.0))
-            cols.append(np.clip(dist / np.maximum(speed, 1.0) / 100.0, 0.0, 10.0))
-        elif name == "fuel_margin":
-            need = m * -np.expm1(-speed / consts["exhaust_velocity_m_s"])
-            cols.append((prop - need) / consts["prop_nominal_kg"])
+        elif name in STOPPING_FEATURES:
+            cols += stopping_columns(name, dist, speed, prop, consts)
         elif name == "reference_profile":
             prof = reference_profile(consts)
             for key, scale in (("altitude_m", 300.0), ("target_cross_m", 300.0),

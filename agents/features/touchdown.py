@@ -32,6 +32,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from agents.features import FeatureFamily
+from agents.features.pinpoint import STOPPING_FEATURES, stopping_columns
 
 __all__ = ["TOUCHDOWN_FEATURE_WIDTHS", "augment_touchdown", "touchdown_feature_bounds",
            "touchdown_reference_profile", "TouchdownFeatures", "REFERENCE_DT_S"]
@@ -125,15 +126,8 @@ def augment_touchdown(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np
     a_thrust = consts["thrust_n"] / m
     cols: list[np.ndarray] = []
     for name in names:
-        if name == "stopping_ratio":
-            ratio = speed ** 2 / (2.0 * a_thrust * np.maximum(dist, 1.0))
-            cols.append(np.clip(np.log1p(ratio), 0.0, 8.0))
-        elif name == "time_to_go":
-            cols.append(np.clip(speed / a_thrust / 100.0, 0.0, 10.0))
-            cols.append(np.clip(dist / np.maximum(speed, 1.0) / 100.0, 0.0, 10.0))
-        elif name == "fuel_margin":
-            need = m * -np.expm1(-speed / consts["exhaust_velocity_m_s"])
-            cols.append((prop - need) / consts["prop_nominal_kg"])
+        if name in STOPPING_FEATURES:
+            cols += stopping_columns(name, dist, speed, prop, consts)
         elif name == "reference_profile":
             prof = touchdown_reference_profile(consts)
             for key, scale in _PROFILE_SCALES:

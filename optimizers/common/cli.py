@@ -271,6 +271,21 @@ def real_type(minimum: float | None = None, maximum: float | None = None, *,
     return parse
 
 
+def _require_creatable(text: str, path: str) -> None:
+    """Refuse ``text`` (absolute ``path``) where its nearest existing ancestor is a file or a
+    folder that cannot be written to (argparse's error)."""
+    import os
+
+    parent = os.path.dirname(path)
+    while not os.path.exists(parent):
+        parent = os.path.dirname(parent)
+    if not os.path.isdir(parent):
+        raise argparse.ArgumentTypeError(f"{text} cannot be created: {parent} is a file, not a "
+                                         "directory")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{text} cannot be created: {parent} is not writable")
+
+
 def output_dir_type(text: str) -> str:
     """An argparse ``type``: a directory this command can write (an existing one, or one it
     can create with its parents).
@@ -288,14 +303,7 @@ def output_dir_type(text: str) -> str:
         if not os.access(path, os.W_OK | os.X_OK):
             raise argparse.ArgumentTypeError(f"{text} is a directory that cannot be written")
         return text
-    parent = os.path.dirname(path)
-    while not os.path.exists(parent):
-        parent = os.path.dirname(parent)
-    if not os.path.isdir(parent):
-        raise argparse.ArgumentTypeError(f"{text} cannot be created: {parent} is a file, not a "
-                                         "directory")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise argparse.ArgumentTypeError(f"{text} cannot be created: {parent} is not writable")
+    _require_creatable(text, path)
     return text
 
 
@@ -316,14 +324,7 @@ def output_file_type(text: str) -> str:
         raise argparse.ArgumentTypeError(f"{text} is a directory; give a file name")
     if os.path.exists(path) and not os.access(path, os.W_OK):
         raise argparse.ArgumentTypeError(f"{text} exists and cannot be written")
-    parent = os.path.dirname(path)
-    while not os.path.exists(parent):
-        parent = os.path.dirname(parent)
-    if not os.path.isdir(parent):
-        raise argparse.ArgumentTypeError(f"{text} cannot be created: {parent} is a file, not a "
-                                         "directory")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise argparse.ArgumentTypeError(f"{text} cannot be created: {parent} is not writable")
+    _require_creatable(text, path)
     return text
 
 

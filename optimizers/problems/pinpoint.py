@@ -44,11 +44,23 @@ from ..common.casadi_tools import casadi as _casadi_module
 from ..common.ocp import OCP
 from ..parameterisations import piecewise_linear_control
 
-__all__ = ["PinpointOCP"]
+__all__ = ["PinpointOCP", "orbital_velocity"]
 
 
 def _ca():
     return _casadi_module()
+
+
+def orbital_velocity(state, plane_normal):
+    """(u, v, w): the relative velocity of a symbolic or numeric normalised Moon-fixed
+    ``state`` in the orbital frame of the plane with unit normal ``plane_normal`` (radial,
+    transverse, normal)."""
+    n = plane_normal
+    xr, yr, zr, xt, yt, zt, xn, yn, zn = dyn.orbital_frame(
+        state[dyn.X], state[dyn.Y], state[dyn.Z], n[0], n[1], n[2])
+    vx, vy, vz = state[dyn.VX], state[dyn.VY], state[dyn.VZ]
+    return (vx * xr + vy * yr + vz * zr, vx * xt + vy * yt + vz * zt,
+            vx * xn + vy * yn + vz * zn)
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,12 +190,7 @@ class PinpointOCP(OCP):
 
     def uvw(self, state):
         """(u, v, w) of a symbolic or numeric state (normalised)."""
-        n = self.params.plane_normal
-        xr, yr, zr, xt, yt, zt, xn, yn, zn = dyn.orbital_frame(
-            state[dyn.X], state[dyn.Y], state[dyn.Z], n[0], n[1], n[2])
-        vx, vy, vz = state[dyn.VX], state[dyn.VY], state[dyn.VZ]
-        return (vx * xr + vy * yr + vz * zr, vx * xt + vy * yt + vz * zt,
-                vx * xn + vy * yn + vz * zn)
+        return orbital_velocity(state, self.params.plane_normal)
 
     def terminal_residual(self, state):
         """Boundary condition φ(X_f) = 0 ([001] §1.2), shape (6,), normalised.

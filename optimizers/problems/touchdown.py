@@ -46,6 +46,7 @@ from lunar_env.scenarios import TouchdownScenario
 
 from ..common.casadi_tools import casadi as _casadi
 from ..common.ocp import OCP
+from .pinpoint import orbital_velocity
 
 __all__ = ["TouchdownOCP", "MAX_MIN_MAX"]
 
@@ -181,12 +182,7 @@ class TouchdownOCP(OCP):
 
     def uvw(self, state):
         """(u, v, w): the relative velocity in the orbital frame, symbolic or numeric."""
-        n = self.params.plane_normal
-        xr, yr, zr, xt, yt, zt, xn, yn, zn = dyn.orbital_frame(
-            state[dyn.X], state[dyn.Y], state[dyn.Z], n[0], n[1], n[2])
-        vx, vy, vz = state[dyn.VX], state[dyn.VY], state[dyn.VZ]
-        return (vx * xr + vy * yr + vz * zr, vx * xt + vy * yt + vz * zt,
-                vx * xn + vy * yn + vz * zn)
+        return orbital_velocity(state, self.params.plane_normal)
 
     def terminal_residual(self, state):
         """Touchdown: position minus the target point (3), then (u, v, w) minus the target's

@@ -32,19 +32,6 @@ DATASET_ID = f"lunar/{ENV_ID}/optimal-v0"
 
 
 @pytest.fixture(scope="module")
-def minari_dir(tmp_path_factory):
-    """A private Minari datasets directory (never the user's ~/.minari)."""
-    path = tmp_path_factory.mktemp("minari")
-    old = os.environ.get("MINARI_DATASETS_PATH")
-    os.environ["MINARI_DATASETS_PATH"] = str(path)
-    yield path
-    if old is None:
-        os.environ.pop("MINARI_DATASETS_PATH", None)
-    else:
-        os.environ["MINARI_DATASETS_PATH"] = old
-
-
-@pytest.fixture(scope="module")
 def exported(minari_dir, tmp_path_factory):
     out = tmp_path_factory.mktemp("ds") / "small.npz"
     assert dataset_cli.main(["--n", "5", "--seed", "4", "--workers", "1", "--shard-size", "5",

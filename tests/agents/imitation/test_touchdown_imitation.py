@@ -3,8 +3,6 @@ the env (rows, samples, certification), its Minari export, and DAgger with law t
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import pytest
 
@@ -18,20 +16,6 @@ from lunar_env import get_scenario
 ENV_ID = "LunarPinpointLanding-v3"
 SC = get_scenario("peng2012_touchdown")
 OPTS = {"n_steps": 400, "check": "doubling", "tol_radius_m": None, "tol_speed_m_s": None}
-
-
-@pytest.fixture(scope="module")
-def minari_dir(tmp_path_factory):
-    """A private Minari datasets directory (never the user's ~/.minari)."""
-    pytest.importorskip("minari")
-    path = tmp_path_factory.mktemp("minari")
-    old = os.environ.get("MINARI_DATASETS_PATH")
-    os.environ["MINARI_DATASETS_PATH"] = str(path)
-    yield path
-    if old is None:
-        os.environ.pop("MINARI_DATASETS_PATH", None)
-    else:
-        os.environ["MINARI_DATASETS_PATH"] = old
 
 
 @pytest.fixture(scope="module")
