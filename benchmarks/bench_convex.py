@@ -214,8 +214,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=2026,
                     help="case set of part 2 (default 2026, the evaluation's)")
     ap.add_argument("--pin", action="store_true",
-                    help="pin the process to one CPU (on a loaded machine this can only hurt "
-                         "the wall times; the CPU times are one-core figures either way)")
+                    help="pin the process to one CPU (with other processes on the cores this can "
+                         "only hurt the wall times; the CPU times are one-core figures either way)")
     ap.add_argument("--part", choices=("all", "optimum", "replan"), default="all")
     args = ap.parse_args(argv)
     n_cases = args.cases or (2 if args.quick else 10)

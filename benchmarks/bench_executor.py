@@ -19,8 +19,8 @@
 
 Ray: a private local instance with 2 CPUs (``--address local``, default) or the cluster at
 ``--address``. The machine may be shared: times are as measured; ratios come from the same run.
-CPU-time tasks keep the work per task fixed under load, but a loaded machine still gives the
-two workers less than two cores, which lowers the 1→2 speed-up.
+CPU-time tasks keep the work per task fixed when the cores are shared, but other processes
+still leave the two workers less than two cores, which lowers the 1→2 speed-up.
 """
 
 from __future__ import annotations

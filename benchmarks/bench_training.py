@@ -12,8 +12,8 @@ the
 
 Reported: environment steps per second during ``model.learn`` (rollout collection *and* the
 gradient updates, i.e. what a user waits for), the rollout-only rate, and the ratio
-native / subproc. Run on a loaded machine the absolute numbers are noisy; the ratio is from
-the same run.
+native / subproc. With other processes on the cores the absolute numbers are noisy; the
+ratio is from the same run.
 
     python benchmarks/bench_training.py [--quick] [--json FILE] [--n-timesteps N] [--n-envs K]
 """

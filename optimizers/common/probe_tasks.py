@@ -26,8 +26,9 @@ def noop(x=None):
 def spin(cpu_s: float, index: int = 0) -> dict:
     """Busy-loop on the CPU for ``cpu_s`` seconds of this process's CPU time.
 
-    Returns ``{"index", "pid", "iterations"}``. CPU time, not wall time: on a loaded machine the
-    work per task stays the same, so throughput ratios measure the executor, not the clock.
+    Returns ``{"index", "pid", "iterations"}``. CPU time, not wall time: with other processes
+    on the cores the work per task stays the same, so throughput ratios measure the executor,
+    not the clock.
     """
     t_end = time.process_time() + float(cpu_s)
     n = 0

@@ -399,7 +399,7 @@ def test_solve_many_on_an_executor_matches_serial():
 @pytest.mark.slow
 def test_pinpoint_optima_on_an_executor(tmp_path):
     """The pinpoint per-case optima of agents.evaluate through the executor: chunks are keyed
-    tasks, every case solved once and cached (slow: ~1.5 min of GPM solves on a loaded machine;
+    tasks, every case solved once and cached (slow: ~1.5 min of GPM solves on 2 shared cores;
     the quick version of the routing is test_solve_many_on_an_executor_matches_serial)."""
     import gymnasium as gym
 

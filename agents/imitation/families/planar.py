@@ -323,7 +323,7 @@ def label_episodes(episodes: list[dict[str, Any]], scenario_name: str, dt_s: flo
     relative to the surface (as the teacher sees them) are not labelled (decision): the env
     cuts the engine within a step there, so the action hardly matters, and from a near-hover
     high above the ground no landing exists — the expert then spends seconds to tens of
-    seconds failing to find one (measured: 40 s for one such state on the loaded machine)
+    seconds failing to find one (measured: 40 s for one such state)
     before returning its braking fallback.
     After more than two consecutive fallbacks an episode's remaining states are skipped too.
     ``tail_label_every`` thins the dense tail.
