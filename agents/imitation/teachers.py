@@ -31,7 +31,7 @@ from guidance.law import GuidanceLaw, Navigation, PrivilegedLaw, actions_of
 from optimizers.indirect.pinpoint_feedback import STATUS_FALLBACK, STATUS_STALE
 
 __all__ = ["TEACHER_KINDS", "Teacher", "parse_teacher", "LawRolloutTeacher", "switch_times",
-           "law_dagger_chunk", "law_dagger_rollouts", "SWITCH_MAX_S"]
+           "law_dagger_chunk", "law_dagger_rollouts", "fly_dagger_rollouts", "SWITCH_MAX_S"]
 
 #: the built-in teachers of every family (setting ``dagger.teacher``; the first is the default)
 TEACHER_KINDS = ("privileged", "navigated")
@@ -178,13 +178,20 @@ def law_dagger_chunk(job: dict[str, Any]) -> dict[str, Any]:
     law = build_law(job["teacher"], LawContext(env_id=job["env_id"],
                                                env_kwargs=dict(job["env_kwargs"]),
                                                scenario=get_scenario(job["scenario"])))
-    teacher = LawRolloutTeacher(law, learner, switch)
+    return fly_dagger_rollouts(job, LawRolloutTeacher(law, learner, switch), switch)
+
+
+def fly_dagger_rollouts(job: dict[str, Any], teacher, switch_s: np.ndarray) -> dict[str, Any]:
+    """Fly a chunk's DAgger roll-outs (``job``'s ``env_id``, ``env_kwargs``, ``n_episodes``,
+    ``seed``) with ``teacher`` (its ``records`` the labelled samples) switching to the learner
+    at ``switch_s``: the samples, concatenated, with each episode's ``success``, ``fuel_kg``,
+    ``touchdown_speed_m_s``, ``miss_m`` and ``learner_only`` (switched at the start)."""
     out = fly(job["env_id"], teacher, int(job["n_episodes"]), seed=int(job["seed"]),
               env_kwargs=job["env_kwargs"])
     res = {k: np.concatenate(v) for k, v in teacher.records.items()}
     res.update(success=out.is_success, fuel_kg=out.fuel_used_kg,
                touchdown_speed_m_s=out.touchdown_speed_m_s, miss_m=out.miss_distance_m,
-               learner_only=switch <= 0.0)
+               learner_only=switch_s <= 0.0)
     return res
 
 

@@ -92,7 +92,8 @@ def pinpoint_optima(scenario, states_nd, *, workers: int = 1,
     paths = [cache / f"{_cache_key(scenario, x)}.npz" if use_cache else None for x in states]
     return cached_optima(states, paths, PinpointOptimum,
                          lambda rows, **kw: solve_many(scenario, rows, n_workers=workers,
-                                                  executor=executor, progress=progress, **kw))
+                                                       executor=executor, progress=progress,
+                                                       **kw))
 
 
 class PinpointOptimumFamily(OptimumFamily):

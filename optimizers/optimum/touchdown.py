@@ -428,8 +428,9 @@ def touchdown_optima(scenario: TouchdownScenario, states_nd, *, workers: int = 1
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     paths = [cache / f"{_cache_key(scenario, x)}.npz" if use_cache else None for x in states]
     return cached_optima(states, paths, TouchdownOptimum,
-                         lambda rows, **kw: solve_touchdown_many(scenario, rows, n_workers=workers,
-                                                  executor=executor, progress=progress, **kw))
+                         lambda rows, **kw: solve_touchdown_many(
+                             scenario, rows, n_workers=workers, executor=executor,
+                             progress=progress, **kw))
 
 
 class TouchdownOptimumFamily(OptimumFamily):

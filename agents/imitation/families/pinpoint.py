@@ -28,6 +28,7 @@ from agents.imitation.families import DaggerRequest, DatasetRecipe, ImitationFam
 from agents.imitation.flights import collect_samples, make_env
 from agents.imitation.teachers import (
     TEACHER_KINDS,
+    fly_dagger_rollouts,
     law_dagger_chunk,
     law_dagger_rollouts,
     parse_teacher,
@@ -301,13 +302,7 @@ def expert_dagger_chunk(job: dict[str, Any]) -> dict[str, Any]:
     switch = np.asarray(job["switch_s"], dtype=np.float64)
     teacher = DaggerRolloutTeacher(PinpointPontryaginExpert(get_scenario(job["scenario"])),
                                    learner, switch, view=job["teacher"])
-    out = fly(job["env_id"], teacher, int(job["n_episodes"]), seed=int(job["seed"]),
-              env_kwargs=job["env_kwargs"])
-    res = {k: np.concatenate(v) for k, v in teacher.records.items()}
-    res.update(success=out.is_success, fuel_kg=out.fuel_used_kg,
-               touchdown_speed_m_s=out.touchdown_speed_m_s, miss_m=out.miss_distance_m,
-               learner_only=switch <= 0.0)
-    return res
+    return fly_dagger_rollouts(job, teacher, switch)
 
 
 def pinpoint_dagger_rollouts(model_path, load_learner, env_id: str,
