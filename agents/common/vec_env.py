@@ -69,6 +69,7 @@ class LanderSB3VecEnv(VecEnv):
         self._actions = None
         done = out["terminated"] | out["truncated"]
         obs = nat.observations()
+        extra_keys = [k for k in nat.task.extra_info_keys if k in out]
         infos: list[dict[str, Any]] = []
         for i in range(self.num_envs):
             info: dict[str, Any] = {"fuel_used_kg": float(out["fuel_used_kg"][i]),
@@ -77,6 +78,9 @@ class LanderSB3VecEnv(VecEnv):
                                     "time_s": float(out["time_s"][i])}
             if out["terminated"][i]:
                 info["touchdown_speed_m_s"] = float(out["touchdown_speed_m_s"][i])
+                for key in extra_keys:  # the task's own touchdown quantities (v3: the speeds)
+                    if np.isfinite(out[key][i]):
+                        info[key] = float(out[key][i])
             if nat.has_target and done[i]:
                 info["miss_distance_m"] = float(out["miss_distance_m"][i])
             if done[i]:

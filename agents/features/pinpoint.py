@@ -149,8 +149,9 @@ def augment_pinpoint(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np.
     / too high for the distance left" directly in m/s and m (clone miss 9.7 km -> 0.2 km), and
     the stop point gives the last ~30 s their scale in metres.
     """
-    if obs.ndim != 2 or obs.shape[1] != 9:
-        raise ValueError(f"obs shape {obs.shape}: expected (B, 9) pinpoint observations")
+    if obs.ndim != 2 or obs.shape[1] < 9:
+        raise ValueError(f"obs shape {obs.shape}: expected (B, 9) pinpoint observations, or "
+                         "(B, 9 + sensor channels)")
     for n in names:
         if n not in PINPOINT_FEATURE_WIDTHS:
             raise ValueError(f"obs_features {n!r} is not defined for the pinpoint env; allowed: "

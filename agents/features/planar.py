@@ -54,7 +54,7 @@ def augment_planar(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np.nd
 
     Parameters
     ----------
-    obs : ndarray, shape (B, 5)
+    obs : ndarray, shape (B, 5) or (B, 5 + sensor channels)
         ``LunarSoftLanding-v0`` observations (altitude/h₀, v_r/(0.1 v₀), v_t/v₀, propellant
         fraction, time fraction).
     consts : dict
@@ -66,8 +66,9 @@ def augment_planar(obs: np.ndarray, consts: dict, names: Sequence[str]) -> np.nd
     -------
     ndarray, shape (B, 5 + Σ widths), float32
     """
-    if obs.ndim != 2 or obs.shape[1] != 5:
-        raise ValueError(f"obs shape {obs.shape}: expected (B, 5) soft-landing observations")
+    if obs.ndim != 2 or obs.shape[1] < 5:
+        raise ValueError(f"obs shape {obs.shape}: expected (B, 5) soft-landing observations, or "
+                         "(B, 5 + sensor channels)")
     o = obs.astype(np.float64)
     q = consts["decode"](o)  # the env's own inverse of its observation
     h = q["altitude_m"]

@@ -144,7 +144,10 @@ class OptimalStartCurriculum(VecEnvWrapper):
         t_s = self.pool_times[k, j]
         self.native.set_states(pick, y, t_s)
         obs = np.array(obs, copy=True)
-        obs[pick] = self.native.observation_from_state(y, t_s)
+        # the sensor channels after the task's (sensors=("imu",)) keep the reset's reading: a
+        # lander that has flown no step of its episode reads the sensor's errors alone
+        n_task = self.native.task.n_base_obs
+        obs[pick, :n_task] = self.native.observation_from_state(y, t_s)[:, :n_task]
         self.n_curriculum_starts += len(pick)
         return obs
 

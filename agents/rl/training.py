@@ -20,6 +20,7 @@ import yaml
 from agents.common.runs import (
     algo_class,
     load_trained,
+    read_run,
     resumable_checkpoint,
     save_model_atomic,
     save_vecnormalize_atomic,
@@ -242,6 +243,80 @@ def widen_action_head(weights: dict, target: dict, added: Any, source: str) -> d
     return out
 
 
+def added_sensor_columns(init_env_kwargs: dict | None, env_kwargs: dict | None, venv,
+                         init_width: int, source: str) -> tuple[int, int] | None:
+    """Where this run's inputs have columns an ``--init-from`` policy lacks: ``(first column,
+    count)`` of the sensor channels (``sensors=("imu",)``) this run's env appends and the
+    initial policy's env did not, or None when the input widths match.
+
+    The sensor channels follow the env's own observation columns and precede the derived
+    features (:mod:`agents.features`), so they are one block at the env's base width.
+
+    Raises
+    ------
+    ValueError
+        The widths differ for any other reason (other features, a history, another env).
+    """
+    from agents.common.vec_env import LanderSB3VecEnv
+    from agents.features.history import HistoryWrapper
+    from agents.rl.callbacks import find_wrapper
+
+    width = int(venv.observation_space.shape[0])
+    if width == init_width:
+        return None
+    native = find_wrapper(venv, LanderSB3VecEnv).native
+    old = tuple((init_env_kwargs or {}).get("sensors") or ())
+    new = tuple((env_kwargs or {}).get("sensors") or ())
+    n_base = int(native.task.n_base_obs)
+    n_add = int(native.single_observation_space.shape[0]) - n_base
+    if old or not new or width - init_width != n_add or find_wrapper(venv, HistoryWrapper):
+        raise ValueError(f"--init-from {source} takes {init_width} inputs, this run {width}: "
+                         "only the sensor channels of sensors=('imu',) can be added to a "
+                         "policy trained without them (and without a history); train with "
+                         "the initial policy's env_kwargs, obs_features and history")
+    return n_base, n_add
+
+
+def widen_input_layer(weights: dict, target: dict, first: int, count: int) -> dict:
+    """``weights`` (a loaded policy's state dict) for ``count`` more input columns at column
+    ``first``: every first-layer weight matrix (the one whose input width grows by ``count``
+    in ``target``) gets zero columns there, so the widened policy and critic compute exactly
+    what the loaded ones did until training gives the new inputs a weight."""
+    import torch
+
+    out = dict(weights)
+    for key, w in weights.items():
+        t = target.get(key)
+        if t is None or w.ndim != 2 or tuple(t.shape) != (w.shape[0], w.shape[1] + count):
+            continue
+        zeros = torch.zeros(w.shape[0], count, dtype=w.dtype)
+        out[key] = torch.cat([w[:, :first], zeros, w[:, first:]], dim=1)
+    return out
+
+
+def load_widened_vecnormalize(path: str | Path, venv, first: int, count: int):
+    """The ``VecNormalize`` statistics at ``path`` over ``venv``, whose inputs have ``count``
+    more columns at column ``first`` than the statistics: those columns get mean 0 and
+    variance 1 (they are fed in their own units: the IMU's in units of the full thrust
+    acceleration, within ±3), the others keep their statistics."""
+    import pickle
+
+    from stable_baselines3.common.running_mean_std import RunningMeanStd
+
+    with open(path, "rb") as fh:
+        vn = pickle.load(fh)  # noqa: S301  (the run's own statistics file)
+    rms = vn.obs_rms
+    wide = RunningMeanStd(shape=(len(rms.mean) + count,))
+    wide.mean = np.insert(rms.mean, first, np.zeros(count))
+    wide.var = np.insert(rms.var, first, np.ones(count))
+    wide.count = rms.count
+    vn.obs_rms = wide
+    vn.observation_space = venv.observation_space
+    vn.action_space = venv.action_space
+    vn.set_venv(venv)
+    return vn
+
+
 def set_initial_action(model, values: Any) -> None:
     """Start a new PPO policy at the mean action ``values`` (the ``initial_action``
     hyperparameter: one number in [-1, 1] per action channel): the action head's bias. SB3
@@ -340,8 +415,15 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                 norm_kw["norm_obs"] = False
                 print(f"--init-from {run['init_from']}: no VecNormalize statistics, so "
                       "norm_obs is off (the initial policy expects raw observations)")
+            added_inputs = added_sensor_columns(
+                read_run(run["init_from"])[1].get("env_kwargs"), hp.get("env_kwargs"), venv,
+                int(init.observation_space.shape[0]), run["init_from"])
+            if added_inputs is not None:
+                print(f"--init-from {run['init_from']}: {added_inputs[1]} sensor input(s) "
+                      f"added at column {added_inputs[0]} with zero weights")
             if norm_kw is not None and init_vn is not None:
-                venv = VecNormalize.load(str(init_vn), venv)
+                venv = (VecNormalize.load(str(init_vn), venv) if added_inputs is None
+                        else load_widened_vecnormalize(init_vn, venv, *added_inputs))
                 # VecNormalize.load keeps the pickled action space; this env's is the one to
                 # learn (it differs when the init policy lacked a channel: added_action_init)
                 venv.action_space = venv.venv.action_space
@@ -376,6 +458,8 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             weights = {k: v for k, v in init.policy.state_dict().items() if k != "log_std"}
             weights = widen_action_head(weights, model.policy.state_dict(),
                                         hp.get("added_action_init"), run["init_from"])
+            if added_inputs is not None:
+                weights = widen_input_layer(weights, model.policy.state_dict(), *added_inputs)
             try:
                 model.policy.load_state_dict(weights, strict=False)
                 missing = set(model.policy.state_dict()) - set(weights) - {"log_std"}

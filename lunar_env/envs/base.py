@@ -310,11 +310,13 @@ class LanderEnv(_TaskDescription, gym.Env):
     def observation_from_state(self, state_nd: np.ndarray, t_s: np.ndarray) -> np.ndarray:
         """Observations of states ``state_nd`` (B, n_state) at times ``t_s`` (B,) (s).
 
-        Returns float32 (B, obs_dim), exactly what :meth:`step` returns for those states.
+        Returns float32 (B, obs_dim), exactly what :meth:`step` returns for those states; the
+        sensor channels (``sensors=("imu",)``) read zero, an ideal sensor of a lander that has
+        flown no step from them.
         """
         y = np.atleast_2d(np.asarray(state_nd, dtype=np.float64))
         t = np.broadcast_to(np.asarray(t_s, dtype=np.float64), (len(y),))
-        return self._task.observation(y, t)
+        return self._task.observation_of_states(y, t)
 
     # -- protocol -------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None
@@ -483,7 +485,7 @@ class LanderVectorEnv(_TaskDescription, VectorEnv):
         """As :meth:`LanderEnv.observation_from_state`."""
         y = np.atleast_2d(np.asarray(state_nd, dtype=np.float64))
         t = np.broadcast_to(np.asarray(t_s, dtype=np.float64), (len(y),))
-        return self._task.observation(y, t)
+        return self._task.observation_of_states(y, t)
 
     def set_states(self, idx, state_nd: np.ndarray, t_s) -> None:
         """Put landers ``idx`` at normalised states ``state_nd`` (len(idx), n_state) and episode

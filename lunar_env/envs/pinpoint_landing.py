@@ -249,7 +249,7 @@ class PinpointTask(LandingTask):
         ``target_radial_m``, ``target_along_m``, ``target_cross_m`` (target − lander in the
         orbital frame), ``u_m_s``, ``v_m_s``, ``w_m_s`` (velocity in the orbital frame),
         ``propellant_kg``, ``time_s``."""
-        o = np.asarray(obs, dtype=np.float64).reshape(-1, self.observation_space.shape[0])
+        o = self.observation_rows(obs)
         v0 = self.speed_scale_m_s
         return {"altitude_m": o[:, 0] * self.altitude_scale_m,
                 "target_radial_m": o[:, 1] * self.range_scale_m,

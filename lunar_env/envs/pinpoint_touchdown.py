@@ -225,7 +225,7 @@ class TouchdownTask(PinpointTask):
         """SI quantities encoded in observations (B, n_obs): the inverse of :meth:`observation`
         (exact inside its bounds, to float32 rounding). Keys: :data:`OBSERVATION_NAMES` with
         ``propellant_kg`` and ``time_s`` for the last two (and the sensor channels')."""
-        o = np.asarray(obs, dtype=np.float64).reshape(-1, self.observation_space.shape[0])
+        o = self.observation_rows(obs)
         out = {n: _slog_inverse(o[:, j], POSITION_SCALE_M)
                for j, n in enumerate(OBSERVATION_NAMES[:3])}
         out.update({n: _slog_inverse(o[:, 3 + j], VELOCITY_SCALE_M_S)

@@ -216,7 +216,7 @@ class PlanarTask(LandingTask):
         """SI quantities encoded in observations (B, 5): the inverse of :meth:`observation`
         (exact inside the observation bounds). Keys: ``altitude_m``,
         ``radial_velocity_m_s``, ``tangential_velocity_m_s``, ``propellant_kg``, ``time_s``."""
-        o = np.asarray(obs, dtype=np.float64).reshape(-1, self.observation_space.shape[0])
+        o = self.observation_rows(obs)
         return {"altitude_m": o[:, 0] * self.altitude_scale_m,
                 "radial_velocity_m_s": o[:, 1] * 0.1 * self.speed_scale_m_s,
                 "tangential_velocity_m_s": o[:, 2] * self.speed_scale_m_s,

@@ -385,12 +385,42 @@ class LandingTask(metaclass=_FrozenAfterInit):
         imu = np.clip(readings["imu"] / self.imu_ref_m_s2, -IMU_OBS_BOUND, IMU_OBS_BOUND)
         return np.concatenate([obs, imu.astype(np.float32)], axis=1)
 
+    def observation_of_states(self, y: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        """Observations (B, n_obs) float32 of states ``y`` (B, n_state) at times ``t_s`` (B,)
+        (s) with the sensor channels of a lander that has flown no step from them, read by
+        an ideal sensor: zero specific force (what a step returns at an episode's first
+        decision, less the sensor's own errors)."""
+        obs = self.observation(y, t_s)
+        if not self.sensors:
+            return obs
+        return self.with_sensor_channels(obs, {"imu": np.zeros((len(obs), self.n_axes))})
+
+    def observation_rows(self, obs: np.ndarray) -> np.ndarray:
+        """Observations as float64 rows (B, width): the env's (B, n_obs) or only the task's
+        own columns (B, n_base_obs), e.g. a shaping potential's slice; a single observation
+        is one row.
+
+        Raises
+        ------
+        ValueError
+            The last dimension is neither width.
+        """
+        o = np.asarray(obs, dtype=np.float64)
+        o = o.reshape(1, -1) if o.ndim == 1 else o.reshape(-1, o.shape[-1])
+        widths = {int(self.observation_space.shape[0]), int(self.n_base_obs)}
+        if o.shape[1] not in widths:
+            raise ValueError(f"observations of width {o.shape[1]}: this env's are "
+                             f"{self.observation_space.shape[0]} wide ({self.n_base_obs} without "
+                             "the sensor channels)")
+        return o
+
     def sensor_quantities(self, obs: np.ndarray) -> dict[str, np.ndarray]:
         """SI quantities of the sensor channels of observations (B, n_obs): ``imu_m_s2`` (B,
-        n_axes), the measured specific force (m/s²; exact inside the bounds)."""
-        if "imu" not in self.sensors:
+        n_axes), the measured specific force (m/s²; exact inside the bounds); none for rows of
+        the task's own columns only."""
+        o = self.observation_rows(obs)
+        if "imu" not in self.sensors or o.shape[1] == self.n_base_obs:
             return {}
-        o = np.asarray(obs, dtype=np.float64).reshape(-1, self.observation_space.shape[0])
         return {"imu_m_s2": o[:, self.n_base_obs:self.n_base_obs + self.n_axes]
                 * self.imu_ref_m_s2}
 

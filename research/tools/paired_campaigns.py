@@ -2,9 +2,11 @@
 cases only one of them lands, and McNemar's exact two-sided p-value.
 
     python research/tools/paired_campaigns.py BEFORE_DIR AFTER_DIR [--law NAME ...]
+        [--pair BEFORE_LAW AFTER_LAW ...]
 
 Each directory is a campaign's ``--out`` (its ``cases.csv``). Rows are paired on (law, case);
-laws present in both are compared.
+laws present in both are compared, and each ``--pair`` compares a law of BEFORE with another of
+AFTER (e.g. two runs of one recipe).
 """
 
 from __future__ import annotations
@@ -16,9 +18,11 @@ import sys
 from pathlib import Path
 
 
-def _rows(path: Path) -> dict[tuple[str, int], bool]:
+def _rows(path: Path, rename: dict[str, str] | None = None) -> dict[tuple[str, int], bool]:
+    rename = rename or {}
     with open(path / "cases.csv", newline="") as fh:
-        return {(r["law"], int(r["case"])): r["success"] == "True" for r in csv.DictReader(fh)}
+        return {(rename.get(r["law"], r["law"]), int(r["case"])): r["success"] == "True"
+                for r in csv.DictReader(fh)}
 
 
 def mcnemar_exact(b: int, c: int) -> float:
@@ -31,8 +35,9 @@ def mcnemar_exact(b: int, c: int) -> float:
     return min(1.0, 2.0 * tail)
 
 
-def compare(before: Path, after: Path, laws=None) -> list[dict]:
-    a, b = _rows(before), _rows(after)
+def compare(before: Path, after: Path, laws=None, pairs: dict[str, str] | None = None
+            ) -> list[dict]:
+    a, b = _rows(before, pairs), _rows(after)
     names = sorted({law for law, _ in a} & {law for law, _ in b})
     out = []
     for law in names:
@@ -54,10 +59,13 @@ def main(argv=None) -> int:
     p.add_argument("before", type=Path)
     p.add_argument("after", type=Path)
     p.add_argument("--law", action="append", default=None)
+    p.add_argument("--pair", action="append", nargs=2, default=[],
+                   metavar=("BEFORE_LAW", "AFTER_LAW"))
     args = p.parse_args(argv)
+    pairs = dict(args.pair)
     print(f"{'law':<60s} {'cases':>5s} {'before':>7s} {'after':>7s} {'only b':>6s} "
           f"{'only a':>6s} {'McNemar p':>10s}")
-    for r in compare(args.before, args.after, args.law):
+    for r in compare(args.before, args.after, args.law, pairs):
         print(f"{r['law'][:60]:<60s} {r['cases']:5d} {100 * r['before']:6.1f}% "
               f"{100 * r['after']:6.1f}% {r['only_before']:6d} {r['only_after']:6d} "
               f"{r['p']:10.2g}")

@@ -297,3 +297,44 @@ def test_init_from_a_policy_without_a_throttle_channel_widens_its_action_head(tm
         tr.main([*QUICK, "--run-dir", str(tmp_path / "none"), "--no-eval", "--hyperparams",
                  "added_action_init={action: [1.0]}"])
     assert not (tmp_path / "none").exists()
+
+
+def test_init_from_a_policy_without_the_imu_adds_its_inputs_with_zero_weights(tmp_path):
+    """A policy trained without the IMU channels continues with them (sensors=("imu",)): the
+    widened policy and critic compute what the loaded ones did whatever the IMU reads (here
+    with a learning rate of 0 and fixed statistics), the added columns normalised with mean 0
+    and variance 1; other input changes are refused by name."""
+    import pickle
+
+    base = tmp_path / "base"
+    assert tr.main([*QUICK, "--seed", "1", "--run-dir", str(base), "-n", "1024", "--no-eval",
+                    "--no-tensorboard"]) == 0
+    wide = tmp_path / "wide"
+    assert tr.main([*QUICK, "--seed", "2", "--run-dir", str(wide), "-n", "1024", "--no-eval",
+                    "--no-tensorboard", "--init-from", str(base), "--hyperparams",
+                    'env_kwargs={"sensors": ["imu"]}', "learning_rate=0.0",
+                    "normalize.update=false"]) == 0
+    m0, vn0, _ = tr.load_trained(base)
+    m1, vn1, _ = tr.load_trained(wide)
+    n0 = m0.observation_space.shape[0]
+    assert m1.observation_space.shape == (n0 + 2,)  # the planar IMU: 2 axes, after 5 columns
+    rng = np.random.default_rng(0)
+    obs0 = rng.normal(size=(64, n0)).astype(np.float32)
+    obs1 = np.insert(obs0, 5, rng.normal(size=(2, 64)).astype(np.float32), axis=1)
+    a0, _ = m0.policy.predict(obs0, deterministic=True)
+    a1, _ = m1.policy.predict(obs1, deterministic=True)
+    np.testing.assert_allclose(a1, a0, rtol=0, atol=1e-6)
+    import torch
+
+    with torch.no_grad():
+        v0 = m0.policy.predict_values(torch.as_tensor(obs0))
+        v1 = m1.policy.predict_values(torch.as_tensor(obs1))
+    np.testing.assert_allclose(v1.numpy(), v0.numpy(), rtol=0, atol=1e-5)
+    with open(vn0, "rb") as f0, open(vn1, "rb") as f1:
+        s0, s1 = pickle.load(f0).obs_rms, pickle.load(f1).obs_rms
+    np.testing.assert_array_equal(np.delete(s1.mean, [5, 6]), s0.mean)
+    np.testing.assert_array_equal(s1.mean[5:7], 0.0)
+    np.testing.assert_array_equal(s1.var[5:7], 1.0)
+    with pytest.raises(ValueError, match="only the sensor channels"):
+        tr.main([*QUICK, "--run-dir", str(tmp_path / "feat"), "--no-eval", "-n", "1024",
+                 "--init-from", str(base), "--hyperparams", "obs_features=[log_altitude]"])

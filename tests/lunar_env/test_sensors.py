@@ -84,6 +84,28 @@ def test_the_imu_channels_of_the_observation(env_id):
     np.testing.assert_array_equal(obs[:n], b1)
 
 
+@pytest.mark.parametrize("env_id", IDS + ["LunarPinpointLanding-v3"])
+def test_observation_from_state_has_the_sensor_channels_of_a_first_decision(env_id):
+    """``observation_from_state`` returns the env's observation width with the sensor
+    channels: in the nominal world exactly the reset's observation (an ideal IMU that has
+    flown no step reads zero), single and vector env alike."""
+    env = gym.make(env_id, sensors=("imu",))
+    obs, _ = env.reset(seed=4)
+    core = env.unwrapped
+    got = core.observation_from_state(core.state_nd[None], np.array([core.t_s]))
+    assert got.shape == (1,) + env.observation_space.shape
+    np.testing.assert_array_equal(got[0], obs)
+    vec = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point",
+                       sensors=("imu",))
+    vobs, _ = vec.reset(seed=4)
+    vcore = vec.unwrapped
+    np.testing.assert_array_equal(vcore.observation_from_state(vcore.state_nd, vcore.t_s),
+                                  vobs)
+    # and it decodes as an observation does
+    q = core.observation_quantities(got)
+    np.testing.assert_array_equal(q["imu_m_s2"], 0.0)
+
+
 @pytest.mark.parametrize("bad, match", [(("lidar",), "unknown sensor 'lidar'"),
                                         (("imu", "imu"), "twice"), ("imu", "list of names")])
 def test_a_bad_sensor_setting_is_refused_by_name(bad, match):

@@ -193,3 +193,22 @@ def test_error_curriculum_entry_with_an_unknown_key_is_refused_by_name():
     with pytest.raises(ValueError, match=r"error_curriculum: unknown key\(s\) \['window'\]"):
         make_training_env("LunarSoftLanding-v0", 2, 0, {"uncertainty": "standard"},
                           error_curriculum={"window": 10}, total_timesteps=100)
+
+
+def test_curriculum_starts_of_an_imu_env_keep_the_reset_reading_of_the_sensor():
+    """With ``sensors=("imu",)`` a curriculum start is the task's observation of the pool
+    state followed by the reset's IMU reading (the sensor's errors alone: no step flown)."""
+    venv = make_sb3_vec_env("LunarPinpointLanding-v3", 4, seed=0, sensors=("imu",),
+                            uncertainty="standard")
+    cur = OptimalStartCurriculum(venv, total_timesteps=600, start_prob=1.0, n_trajectories=2,
+                                 seed=0, progress=False)
+    obs = cur.reset()
+    native = venv.native
+    assert obs.shape == (4, native.single_observation_space.shape[0]) == (4, 11)
+    n_task = native.task.n_base_obs
+    want = native.observation_from_state(np.asarray(native.state_nd), np.asarray(native.t_s))
+    np.testing.assert_array_equal(obs[:, :n_task], want[:, :n_task])
+    imu = native.sensor_readings()["imu"] / native.task.imu_ref_m_s2
+    np.testing.assert_allclose(obs[:, n_task:], imu, rtol=0, atol=1e-6)
+    assert np.all(obs[:, n_task:] != 0.0)  # the errors read, not an ideal sensor's zero
+    cur.close()

@@ -79,6 +79,31 @@ def test_features_read_the_env_through_its_own_decoding():
     np.testing.assert_allclose(q["time_s"], t, rtol=1e-5, atol=1e-3)
 
 
+@pytest.mark.parametrize("env_id, names, potential", [
+    (ENV_ID, ALL, "surface_speed"),
+    ("LunarPinpointLanding-v2", ["log_altitude", "fine_range", "stopping_ratio"],
+     "gate_speed_and_range")])
+def test_features_and_potentials_of_an_imu_env_are_those_of_its_own_columns(env_id, names,
+                                                                            potential):
+    """With ``sensors=("imu",)`` the features and the shaping potential read the env's own
+    columns (the sensor channels pass through, before the features); a width that is neither
+    the env's nor its own columns' is refused."""
+    plain = make_sb3_vec_env(env_id, 4, seed=0)
+    imu = make_sb3_vec_env(env_id, 4, seed=0, sensors=("imu",))
+    o_plain, o_imu = plain.reset(), imu.reset()
+    n = o_plain.shape[1]
+    np.testing.assert_array_equal(o_imu[:, :n], o_plain)
+    f_plain = augment_observation(o_plain, feature_constants(plain.native), names)
+    f_imu = augment_observation(o_imu, feature_constants(imu.native), names)
+    np.testing.assert_array_equal(f_imu[:, :o_imu.shape[1]], o_imu)
+    np.testing.assert_allclose(f_imu[:, o_imu.shape[1]:], f_plain[:, n:], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(PotentialShaping(imu, 0.99, potential=potential).phi(o_imu),
+                               PotentialShaping(plain, 0.99, potential=potential).phi(o_plain),
+                               rtol=1e-12)
+    with pytest.raises(ValueError, match="observations of width"):
+        imu.native.observation_quantities(o_imu[:, :-1])
+
+
 def test_validate_features_rejects_unknown_names():
     with pytest.raises(ValueError, match="unknown obs_features"):
         validate_features(["altitude_squared"])

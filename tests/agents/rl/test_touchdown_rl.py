@@ -17,7 +17,12 @@ from agents.features import (
     validate_features,
 )
 from agents.features.touchdown import TOUCHDOWN_FEATURE_WIDTHS
-from agents.rl.shaping import FAMILY_POTENTIALS, PotentialShaping, resolve_success_bonus
+from agents.rl.shaping import (
+    FAMILY_POTENTIALS,
+    PotentialShaping,
+    resolve_margin_bonus,
+    resolve_success_bonus,
+)
 from agents.rl.starts import START_FAMILIES
 from lunar_env import get_scenario
 
@@ -110,6 +115,60 @@ def test_shaping_potential_is_the_terminal_term_of_a_truncation(pool):
     assert FAMILY_POTENTIALS["pinpoint_touchdown"] == ("touchdown_speeds_and_range",)
     with pytest.raises(ValueError, match="does not fit this env"):
         PotentialShaping(venv, gamma=0.99, potential="gate_speed_and_range")
+
+
+def test_margin_bonus_pays_a_success_by_its_room_to_the_nearest_limit(monkeypatch):
+    """P·min_k(1 − x_k/limit_k) over the verdict's limits (miss 100 m, 3 m/s down, 1.2 m/s
+    across) is added to a success's reward, nothing to a failure; ``auto`` is the success
+    bonus; the env's final info carries each bounded quantity."""
+    venv = make_sb3_vec_env(ENV_ID, 3, seed=0)
+    plain = PotentialShaping(venv, gamma=0.998, potential="touchdown_speeds_and_range",
+                             success_bonus="auto")
+    margin = PotentialShaping(venv, gamma=0.998, potential="touchdown_speeds_and_range",
+                              success_bonus="auto", margin_bonus="auto")
+    assert margin.margin_bonus == pytest.approx(plain.success_bonus)
+    assert margin.config()["margin_bonus"] == margin.margin_bonus
+    assert margin.limits == {"miss_distance_m": 100.0, "touchdown_vertical_speed_m_s": 3.0,
+                             "touchdown_horizontal_speed_m_s": 1.2}
+    obs = venv.reset()
+    speeds = {"touchdown_speed_m_s": 2.0, "touchdown_vertical_speed_m_s": 0.6,
+              "touchdown_horizontal_speed_m_s": 0.24}
+    ends = (obs, np.zeros(3, dtype=np.float32), np.array([True, True, True]),
+            [{"is_success": True, "miss_distance_m": 25.0, **speeds},   # miss nearest: 0.75
+             {"is_success": True, "miss_distance_m": 10.0, **speeds,   # across nearest: 0.25
+              "touchdown_horizontal_speed_m_s": 0.9},
+             {"is_success": False, "miss_distance_m": 40.0, **speeds}])
+    monkeypatch.setattr(venv, "step_wait", lambda: ends)
+    got = {}
+    for name, w in (("plain", plain), ("margin", margin)):
+        w._phi = w.phi(obs)
+        got[name] = w.step_wait()[1]
+    np.testing.assert_allclose(got["margin"] - got["plain"],
+                               [0.75 * margin.margin_bonus, 0.25 * margin.margin_bonus, 0.0],
+                               rtol=1e-6)
+    monkeypatch.undo()
+    # the real env's final info has every quantity the verdict bounds
+    for _ in range(2000):
+        obs, _, done, infos = venv.step(np.tile([[0.0, 0.0, 0.0]], (3, 1)).astype(np.float32))
+        if done.any():
+            info = infos[int(np.flatnonzero(done)[0])]
+            assert set(margin.limits) <= set(info)
+            assert np.isfinite(margin.margins([info])).all()
+            break
+    else:
+        raise AssertionError("no episode ended")
+
+
+@pytest.mark.parametrize("value, match", [("best", "allowed: 'auto'"), (-1.0, ">= 0"),
+                                          (float("nan"), ">= 0")])
+def test_a_bad_margin_bonus_is_refused_by_name(value, match):
+    with pytest.raises(ValueError, match=match):
+        resolve_margin_bonus(value, {"miss_m": 100.0, "vertical_speed_m_s": 3.0,
+                                     "horizontal_speed_m_s": 1.2})
+    with pytest.raises(ValueError, match="needs a verdict with limits"):
+        resolve_margin_bonus("auto", {"miss_m": float("inf")})
+    assert resolve_margin_bonus(None, {}) == 0.0
+    assert resolve_margin_bonus(2.0, {"speed_m_s": 5.0}) == 2.0
 
 
 def test_start_pool_follows_the_optimal_landings(pool):
