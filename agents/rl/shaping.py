@@ -76,7 +76,7 @@ from agents.features import feature_constants
 from lunar_env.validation import require_number
 
 __all__ = ["MARGIN_INFO_KEYS", "PotentialShaping", "resolve_margin_bonus", "resolve_success_bonus",
-           "surface_speed_m_s", "touchdown_speeds_and_range"]
+           "surface_speed_m_s", "touchdown_speeds_and_range", "verdict_limits"]
 
 #: the final-info key of each quantity a verdict bounds (``success_thresholds`` key -> info key)
 MARGIN_INFO_KEYS = {"miss_m": "miss_distance_m", "speed_m_s": "touchdown_speed_m_s",
@@ -178,10 +178,7 @@ class PotentialShaping(VecEnvWrapper):
         self.success_bonus = resolve_success_bonus(success_bonus, thresholds)
         self.margin_bonus = resolve_margin_bonus(margin_bonus, thresholds)
         #: the verdict's limits, each with the final-info key of the quantity it bounds
-        # a verdict on each speed component (v3) leaves the total speed unbounded
-        self.limits = {MARGIN_INFO_KEYS[k]: float(v) for k, v in thresholds.items()
-                       if k in MARGIN_INFO_KEYS and np.isfinite(v)
-                       and not (k == "speed_m_s" and "vertical_speed_m_s" in thresholds)}
+        self.limits = {MARGIN_INFO_KEYS[k]: v for k, v in verdict_limits(thresholds).items()}
 
     def phi(self, obs: np.ndarray) -> np.ndarray:
         """Φ of observations, shape (B,)."""
@@ -230,6 +227,16 @@ class PotentialShaping(VecEnvWrapper):
                 "success_bonus": self.success_bonus, "margin_bonus": self.margin_bonus}
 
 
+def verdict_limits(thresholds: dict[str, float]) -> dict[str, float]:
+    """The finite limits an env's verdict bounds, keyed as its ``success_thresholds``: each
+    speed component where the verdict bounds them (v3, whose ``speed_m_s`` is only their
+    hypotenuse), else the speed; and the miss distance where there is a target."""
+    speeds = (("vertical_speed_m_s", "horizontal_speed_m_s") if "vertical_speed_m_s" in thresholds
+              else ("speed_m_s",))
+    return {k: float(thresholds[k]) for k in (*speeds, "miss_m")
+            if k in thresholds and np.isfinite(thresholds[k])}
+
+
 def resolve_success_bonus(value: float | str | None, thresholds: dict[str, float]) -> float:
     """The success bonus B of a ``success_bonus`` setting (0.0 for None); ``thresholds``: the
     env's ``success_thresholds``."""
@@ -238,11 +245,9 @@ def resolve_success_bonus(value: float | str | None, thresholds: dict[str, float
     if isinstance(value, str):
         if value != "auto":
             raise ValueError(f"success_bonus={value!r}; allowed: 'auto', a number >= 0 or null")
-        miss = np.log1p(thresholds.get("miss_m", 0.0) / 100.0)
-        if "vertical_speed_m_s" in thresholds:  # a verdict on each component (v3)
-            return float(np.log1p(thresholds["vertical_speed_m_s"])
-                         + np.log1p(thresholds["horizontal_speed_m_s"]) + miss)
-        return float(np.log1p(thresholds["speed_m_s"]) + miss)
+        limits = verdict_limits(thresholds)
+        speeds = sum(np.log1p(v) for k, v in limits.items() if k != "miss_m")
+        return float(speeds + np.log1p(limits.get("miss_m", 0.0) / 100.0))
     b = require_number("success_bonus", value)
     if not (np.isfinite(b) and b >= 0):
         raise ValueError(f"success_bonus={value!r} must be 'auto', a finite number >= 0 or null")
@@ -252,7 +257,7 @@ def resolve_success_bonus(value: float | str | None, thresholds: dict[str, float
 def resolve_margin_bonus(value: float | str | None, thresholds: dict[str, float]) -> float:
     """P of a ``margin_bonus`` setting (0.0 for None): ``"auto"`` is the success bonus ``auto``
     resolves to; ``thresholds``: the env's ``success_thresholds``, which must bound at least
-    one quantity of :data:`MARGIN_INFO_KEYS`.
+    one quantity (:func:`verdict_limits`).
 
     Raises
     ------
@@ -261,7 +266,7 @@ def resolve_margin_bonus(value: float | str | None, thresholds: dict[str, float]
     """
     if value is None:
         return 0.0
-    if not any(np.isfinite(v) for k, v in thresholds.items() if k in MARGIN_INFO_KEYS):
+    if not verdict_limits(thresholds):
         raise ValueError(f"margin_bonus={value!r} needs a verdict with limits; this env's "
                          f"success thresholds are {sorted(thresholds)}")
     if isinstance(value, str):

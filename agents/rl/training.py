@@ -311,8 +311,7 @@ def load_widened_vecnormalize(path: str | Path, venv, first: int, count: int):
     wide.var = np.insert(rms.var, first, np.ones(count))
     wide.count = rms.count
     vn.obs_rms = wide
-    vn.observation_space = venv.observation_space
-    vn.action_space = venv.action_space
+    vn.observation_space = venv.observation_space  # set_venv checks it against the env's
     vn.set_venv(venv)
     return vn
 

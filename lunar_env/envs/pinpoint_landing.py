@@ -257,7 +257,7 @@ class PinpointTask(LandingTask):
                 "target_cross_m": o[:, 3] * self.range_scale_m,
                 "u_m_s": o[:, 4] * 0.1 * v0, "v_m_s": o[:, 5] * v0, "w_m_s": o[:, 6] * 0.1 * v0,
                 "propellant_kg": o[:, 7] * self.prop_nominal_nd * self.mass_ref_kg,
-                "time_s": o[:, 8] * self.time_limit_s, **self.sensor_quantities(obs)}
+                "time_s": o[:, 8] * self.time_limit_s, **self.sensor_quantities(o)}
 
     def physical_constants(self) -> dict[str, float]:
         """SI constants policies may use (derived features): ``thrust_n``,

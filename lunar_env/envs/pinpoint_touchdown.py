@@ -232,7 +232,7 @@ class TouchdownTask(PinpointTask):
                     for j, n in enumerate(OBSERVATION_NAMES[3:6])})
         out["propellant_kg"] = o[:, 6] * self.prop_nominal_nd * self.mass_ref_kg
         out["time_s"] = o[:, 7] * self.time_limit_s
-        out.update(self.sensor_quantities(obs))
+        out.update(self.sensor_quantities(o))
         return out
 
     def physical_constants(self) -> dict[str, float]:

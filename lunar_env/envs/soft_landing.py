@@ -221,7 +221,7 @@ class PlanarTask(LandingTask):
                 "radial_velocity_m_s": o[:, 1] * 0.1 * self.speed_scale_m_s,
                 "tangential_velocity_m_s": o[:, 2] * self.speed_scale_m_s,
                 "propellant_kg": o[:, 3] * self.prop_nominal_nd * self.mass_ref_kg,
-                "time_s": o[:, 4] * self.time_limit_s, **self.sensor_quantities(obs)}
+                "time_s": o[:, 4] * self.time_limit_s, **self.sensor_quantities(o)}
 
     def physical_constants(self) -> dict[str, float]:
         """SI constants of the lander and the body that policies may use (derived features):

@@ -251,6 +251,18 @@ def test_init_from_with_fixed_statistics_keeps_the_input_map(tmp_path):
         _normalize_updates({"update": "no"})
 
 
+def _base_and_continued(tmp_path, *hyperparams: str):
+    """A quick planar run ``base`` (seed 1, 1024 steps) and a run ``wide`` started from it by
+    ``--init-from`` with ``hyperparams`` (seed 2, 1024 steps); their directories."""
+    base, wide = tmp_path / "base", tmp_path / "wide"
+    assert tr.main([*QUICK, "--seed", "1", "--run-dir", str(base), "-n", "1024", "--no-eval",
+                    "--no-tensorboard"]) == 0
+    assert tr.main([*QUICK, "--seed", "2", "--run-dir", str(wide), "-n", "1024", "--no-eval",
+                    "--no-tensorboard", "--init-from", str(base), "--hyperparams",
+                    *hyperparams]) == 0
+    return base, wide
+
+
 def test_init_from_a_policy_without_a_throttle_channel_widens_its_action_head(tmp_path):
     """added_action_init: a policy trained without a throttle channel continues with one. The
     widened policy's mean flies as the loaded one did, its throttle held at the given action
@@ -259,15 +271,9 @@ def test_init_from_a_policy_without_a_throttle_channel_widens_its_action_head(tm
     key for matching heads is refused by name."""
     from agents.rl.training import widen_action_head
 
-    base = tmp_path / "base"
-    assert tr.main([*QUICK, "--seed", "1", "--run-dir", str(base), "-n", "1024", "--no-eval",
-                    "--no-tensorboard"]) == 0
-    wide = tmp_path / "wide"
-    assert tr.main([*QUICK, "--seed", "2", "--run-dir", str(wide), "-n", "1024", "--no-eval",
-                    "--no-tensorboard", "--init-from", str(base), "--hyperparams",
-                    'env_kwargs={"throttle_channel": true}',
-                    "added_action_init={action: [0.8], log_std: [-6.0]}",
-                    "learning_rate=0.0"]) == 0
+    base, wide = _base_and_continued(tmp_path, 'env_kwargs={"throttle_channel": true}',
+                                     "added_action_init={action: [0.8], log_std: [-6.0]}",
+                                     "learning_rate=0.0")
     m0, _, _ = tr.load_trained(base)
     m1, _, _ = tr.load_trained(wide)
     assert m0.action_space.shape == (1,) and m1.action_space.shape == (2,)
@@ -306,14 +312,8 @@ def test_init_from_a_policy_without_the_imu_adds_its_inputs_with_zero_weights(tm
     and variance 1; other input changes are refused by name."""
     import pickle
 
-    base = tmp_path / "base"
-    assert tr.main([*QUICK, "--seed", "1", "--run-dir", str(base), "-n", "1024", "--no-eval",
-                    "--no-tensorboard"]) == 0
-    wide = tmp_path / "wide"
-    assert tr.main([*QUICK, "--seed", "2", "--run-dir", str(wide), "-n", "1024", "--no-eval",
-                    "--no-tensorboard", "--init-from", str(base), "--hyperparams",
-                    'env_kwargs={"sensors": ["imu"]}', "learning_rate=0.0",
-                    "normalize.update=false"]) == 0
+    base, wide = _base_and_continued(tmp_path, 'env_kwargs={"sensors": ["imu"]}',
+                                     "learning_rate=0.0", "normalize.update=false")
     m0, vn0, _ = tr.load_trained(base)
     m1, vn1, _ = tr.load_trained(wide)
     n0 = m0.observation_space.shape[0]
