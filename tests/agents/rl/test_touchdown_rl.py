@@ -19,7 +19,9 @@ from agents.features import (
 from agents.features.touchdown import TOUCHDOWN_FEATURE_WIDTHS
 from agents.rl.shaping import (
     FAMILY_POTENTIALS,
+    LOW_GATE_DEFAULTS,
     PotentialShaping,
+    resolve_low_gate,
     resolve_margin_bonus,
     resolve_success_bonus,
 )
@@ -247,3 +249,61 @@ def test_quick_runs_fly_no_expert_where_it_outlasts_the_training():
     assert tr._quick_expert_states(ENV_ID, {"dt_s": 2.0}) == 0
     assert tr._quick_expert_states("LunarPinpointLanding-v2", None) == 2
     assert tr._quick_expert_states("LunarSoftLanding-v0", None) == 2
+
+
+def test_low_gate_costs_horizontal_speed_above_an_envelope_per_metre_lost(pool):
+    """The cost w·log(1 + e)·Δh, e the horizontal speed above max(0, h − h_gate)/τ and Δh the
+    height lost: nothing on the envelope or when climbing, the same per metre however fast
+    the lander falls; subtracted from every decision, an episode's last one at its final
+    observation."""
+    states, times = pool
+    venv = make_sb3_vec_env(ENV_ID, 2, seed=0)
+    gate = PotentialShaping(venv, gamma=0.998, potential="touchdown_speeds_and_range",
+                            low_gate={"height_m": 20.0, "weight_per_m": 0.5})
+    assert gate.low_gate == {"height_m": 20.0, "time_s": 1.0, "weight_per_m": 0.5}
+    obs = venv.native.observation_from_state(states[0], times[0])
+    q = gate.consts["decode"](obs)
+    v_h = np.hypot(q["v_along_m_s"], q["v_cross_m_s"])
+    excess = np.maximum(v_h - np.maximum(q["altitude_m"] - 20.0, 0.0), 0.0)
+    cost = gate.low_gate_cost(obs, q["altitude_m"] + 2.0)
+    np.testing.assert_allclose(cost, 0.5 * np.log1p(excess) * 2.0, rtol=1e-9)
+    # the certified optimum brakes along-track into the ground: over the envelope near the end
+    assert cost[-3:].max() > 0.0 and cost[0] == 0.0
+    # on the envelope nothing; below the gate the horizontal speed's, per metre lost only
+    on = dict({k: v[:2] for k, v in q.items()}, altitude_m=np.array([120.0, 10.0]),
+              v_along_m_s=np.array([60.0, 3.0]), v_cross_m_s=np.array([80.0, 4.0]))
+    gate.consts = dict(gate.consts, decode=lambda o: on)
+    np.testing.assert_allclose(gate.low_gate_cost(obs[:2], np.array([130.0, 14.0])),
+                               [0.0, 0.5 * np.log1p(5.0) * 4.0])
+    np.testing.assert_allclose(gate.low_gate_cost(obs[:2], np.array([130.0, 6.0])), [0.0, 0.0])
+    # each decision is charged, an episode's last one at its final observation (the decode
+    # below reads it as the same state): two landers fall 4 m below the gate, the first lands
+    below = dict(on, altitude_m=np.array([10.0, 10.0]), v_along_m_s=np.array([3.0, 3.0]),
+                 v_cross_m_s=np.array([4.0, 4.0]))
+    gate.consts = dict(gate.consts, decode=lambda o: below)
+    plain = PotentialShaping(venv, gamma=0.998, potential="touchdown_speeds_and_range")
+    plain.consts = gate.consts
+    ends = (obs[:2], np.zeros(2, dtype=np.float32), np.array([True, False]),
+            [{"is_success": False, "terminal_observation": obs[0]}, {"is_success": False}])
+    venv.step_wait = lambda: ends
+    got = {}
+    for name, w in (("plain", plain), ("gate", gate)):
+        w._phi = np.zeros(2)
+        w._height_m = np.array([14.0, 14.0])
+        got[name] = w.step_wait()[1]
+    np.testing.assert_allclose(got["plain"] - got["gate"], [0.5 * np.log1p(5.0) * 4.0] * 2,
+                               rtol=1e-6)
+    np.testing.assert_array_equal(gate._height_m, [10.0, 10.0])
+
+
+@pytest.mark.parametrize("value, match", [({"height_m": 0.0}, "finite number > 0"),
+                                          ({"time_s": float("nan")}, "finite number > 0"),
+                                          ({"gate_m": 15.0}, "unknown"),
+                                          (15.0, "must be a mapping")])
+def test_a_bad_low_gate_is_refused_by_name(value, match):
+    with pytest.raises(ValueError, match=match):
+        resolve_low_gate(value, "pinpoint_touchdown")
+    with pytest.raises(ValueError, match="needs LunarPinpointLanding-v3"):
+        resolve_low_gate({}, "pinpoint")
+    assert resolve_low_gate(None, "planar") is None
+    assert resolve_low_gate({}, "pinpoint_touchdown") == LOW_GATE_DEFAULTS
