@@ -58,9 +58,9 @@ Potential (YAML ``reward_shaping: {potential: surface_speed, weight: w}``):
     P = the success bonus B; a number sets P. Needs each bounded quantity in the env's final
     info (``miss_distance_m``, ``touchdown_speed_m_s`` and the task's ``extra_info_keys``).
 
-``low_gate`` (optional, ``LunarPinpointLanding-v3``; ``reward_shaping: {..., low_gate:
-{height_m: 15, time_s: 1, weight_per_m: 0.03}}``)
-    A cost w·log(1 + e / 1 m/s)·Δh at every decision, the last included (at its final
+``low_gate`` (optional, ``LunarPinpointLanding-v3``)
+    ``reward_shaping: {..., low_gate: {height_m: 15, time_s: 1, weight_per_m: 0.03}}``. A
+    cost w·log(1 + e / 1 m/s)·Δh at every decision, the last included (at its final
     observation), Δh ≥ 0 the height lost over the decision (m) and e = max(0, v_h −
     max(0, h − h_gate)/τ) the horizontal speed above an envelope that closes linearly to
     zero at the low gate h_gate above the site: the phased laws' terminal descent, straight
