@@ -239,8 +239,11 @@ class PotentialShaping(VecEnvWrapper):
             last = obs.copy()
             for i in np.flatnonzero(done):
                 last[i] = infos[i]["terminal_observation"]
-            shaped -= self.low_gate_cost(last, self._height_m).astype(np.float32)
-            self._height_m = self.height_m(obs)
+            q = self.consts["decode"](np.asarray(last, dtype=np.float64))
+            shaped -= self.low_gate_cost(q, self._height_m).astype(np.float32)
+            # the next decision starts where this one ended, or at a reset's first observation
+            self._height_m = (np.where(done, self.height_m(obs), q["altitude_m"]) if done.any()
+                              else q["altitude_m"])
         if (self.success_bonus or self.margin_bonus) and done.any():
             won = [i for i in np.flatnonzero(done) if infos[i].get("is_success")]
             shaped[won] += np.float32(self.success_bonus)
@@ -254,11 +257,13 @@ class PotentialShaping(VecEnvWrapper):
         """Navigated height above the site (m) of observations (B, n_obs), shape (B,)."""
         return self.consts["decode"](np.asarray(obs, dtype=np.float64))["altitude_m"]
 
-    def low_gate_cost(self, obs: np.ndarray, height_before_m: np.ndarray) -> np.ndarray:
+    def low_gate_cost(self, obs: np.ndarray | dict[str, np.ndarray],
+                      height_before_m: np.ndarray) -> np.ndarray:
         """The low-gate cost w·log(1 + e / 1 m/s)·Δh of the decisions that ended in
-        observations (B, n_obs) from heights ``height_before_m`` (B,) (m), shape (B,) (module
-        docstring)."""
-        q = self.consts["decode"](np.asarray(obs, dtype=np.float64))
+        observations (B, n_obs), or their decoded quantities, from heights
+        ``height_before_m`` (B,) (m), shape (B,) (module docstring)."""
+        q = obs if isinstance(obs, dict) else self.consts["decode"](
+            np.asarray(obs, dtype=np.float64))
         gate = self.low_gate
         allowed = np.maximum(q["altitude_m"] - gate["height_m"], 0.0) / gate["time_s"]
         excess = np.maximum(np.hypot(q["v_along_m_s"], q["v_cross_m_s"]) - allowed, 0.0)
