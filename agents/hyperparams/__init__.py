@@ -44,7 +44,7 @@ and its ``policy_kwargs`` hold sb3-contrib's ``lstm_hidden_size``, ``n_lstm_laye
 ``anneal_fraction``, ``n_trajectories``, ...), or absent. ``added_action_init``
 (``{action: [...], log_std: [...]}``) says how a run started by ``--init-from`` fills the action
 channels its initial policy lacks, e.g. a throttle channel
-(:func:`agents.rl.training.widen_action_head`). ``initial_action`` (one number in [-1, 1]
+(:func:`agents.rl.warm_start.widen_action_head`). ``initial_action`` (one number in [-1, 1]
 per action channel) is the mean action a new PPO run starts from
 (:func:`agents.rl.training.set_initial_action`).
 """

@@ -27,6 +27,12 @@ from agents.common.runs import (
     write_text_atomic,
 )
 from agents.hyperparams import resolve_algo_kwargs
+from agents.rl.warm_start import (
+    input_map,
+    load_widened_vecnormalize,
+    widen_action_head,
+    widen_input_layer,
+)
 from lunar_env.validation import require_bool
 
 __all__ = ["train", "interrupt_on_sigterm", "make_training_env", "set_initial_action",
@@ -184,138 +190,6 @@ def _select_final(model, run_dir: Path, run: dict[str, Any], hp: dict[str, Any],
     return algo_class(algo).load(run_dir / "model.zip", device=run.get("device", "cpu"))
 
 
-def widen_action_head(weights: dict, target: dict, added: Any, source: str) -> dict:
-    """``weights`` (a loaded PPO policy's state dict) for a policy with more action channels.
-
-    ``added`` (the ``added_action_init`` hyperparameter) is a mapping ``{action: [...],
-    log_std: [...]}`` with one entry per channel ``target`` has and the loaded policy lacks:
-    the constant action in [-1, 1] the channel starts at, and optionally its exploration log σ
-    (default: this run's ``log_std_init``, as for every channel of ``--init-from``). Example:
-    ``{action: [1.0], log_std: [-6.0]}`` for a pinpoint policy trained without a throttle
-    channel and continued with one (``throttle_channel: true``; action 1 is full thrust). The
-    added rows of the action head get zero weights and that action as bias, so the widened
-    policy's mean flies exactly as the loaded one did; the loaded channels are copied.
-
-    Raises ValueError when the heads differ and ``added`` does not say how to fill them, when
-    it is given for heads that already match, or when a value is malformed."""
-    import torch
-
-    key_w, key_b = "action_net.weight", "action_net.bias"
-    if key_w not in weights or key_w not in target:
-        if added is not None:
-            raise ValueError(f"added_action_init={added!r}: only for PPO policies (an "
-                             f"'{key_w}' head); --init-from {source} has none")
-        return weights
-    n_old, n_new = weights[key_w].shape[0], target[key_w].shape[0]
-    if n_old == n_new:
-        if added is not None:
-            raise ValueError(f"added_action_init={added!r}: --init-from {source} already has "
-                             f"this env's {n_new} action channels; drop the key")
-        return weights
-    n_add = n_new - n_old
-    if n_old > n_new or added is None:
-        raise ValueError(
-            f"--init-from {source} has {n_old} action channels, this env {n_new}"
-            + ("" if n_old > n_new else
-               f"; set added_action_init to {{action: [...], log_std: [...]}} with {n_add} "
-               "value(s) each: the constant action(s) in [-1, 1] the added channel(s) start at "
-               "(e.g. 1.0: a throttle channel at full thrust) and, optionally, their log σ"))
-    if not isinstance(added, dict) or set(added) - {"action", "log_std"} or "action" not in added:
-        raise ValueError(f"added_action_init={added!r}: must be a mapping with 'action' and "
-                         "optionally 'log_std'")
-
-    def values(key: str, bound: float) -> np.ndarray:
-        v = np.asarray(added[key], dtype=np.float64).reshape(-1)
-        if len(v) != n_add or not np.all(np.isfinite(v)) or np.any(np.abs(v) > bound):
-            raise ValueError(f"added_action_init.{key}={added[key]!r}: needs {n_add} finite "
-                             f"value(s) in [-{bound:g}, {bound:g}], one per channel --init-from "
-                             f"{source} lacks")
-        return v
-
-    out = dict(weights)
-    w, b = weights[key_w], weights[key_b]
-    out[key_w] = torch.cat([w, torch.zeros(n_add, w.shape[1], dtype=w.dtype)])
-    out[key_b] = torch.cat([b, torch.as_tensor(values("action", 1.0), dtype=b.dtype)])
-    if added.get("log_std") is not None:
-        log_std = target["log_std"].clone()
-        log_std[n_old:] = torch.as_tensor(values("log_std", 20.0), dtype=log_std.dtype)
-        out["log_std"] = log_std
-    return out
-
-
-def added_sensor_columns(init_env_kwargs: dict | None, env_kwargs: dict | None, venv,
-                         init_width: int, source: str) -> tuple[int, int] | None:
-    """Where this run's inputs have columns an ``--init-from`` policy lacks: ``(first column,
-    count)`` of the sensor channels (``sensors=("imu",)``) this run's env appends and the
-    initial policy's env did not, or None when the input widths match.
-
-    The sensor channels follow the env's own observation columns and precede the derived
-    features (:mod:`agents.features`), so they are one block at the env's base width.
-
-    Raises
-    ------
-    ValueError
-        The widths differ for any other reason (other features, a history, another env).
-    """
-    from agents.common.vec_env import LanderSB3VecEnv
-    from agents.features.history import HistoryWrapper
-    from agents.rl.callbacks import find_wrapper
-
-    width = int(venv.observation_space.shape[0])
-    if width == init_width:
-        return None
-    native = find_wrapper(venv, LanderSB3VecEnv).native
-    old = tuple((init_env_kwargs or {}).get("sensors") or ())
-    new = tuple((env_kwargs or {}).get("sensors") or ())
-    n_base = int(native.task.n_base_obs)
-    n_add = int(native.single_observation_space.shape[0]) - n_base
-    if old or not new or width - init_width != n_add or find_wrapper(venv, HistoryWrapper):
-        raise ValueError(f"--init-from {source} takes {init_width} inputs, this run {width}: "
-                         "only the sensor channels of sensors=('imu',) can be added to a "
-                         "policy trained without them (and without a history); train with "
-                         "the initial policy's env_kwargs, obs_features and history")
-    return n_base, n_add
-
-
-def widen_input_layer(weights: dict, target: dict, first: int, count: int) -> dict:
-    """``weights`` (a loaded policy's state dict) for ``count`` more input columns at column
-    ``first``: every first-layer weight matrix (the one whose input width grows by ``count``
-    in ``target``) gets zero columns there, so the widened policy and critic compute exactly
-    what the loaded ones did until training gives the new inputs a weight."""
-    import torch
-
-    out = dict(weights)
-    for key, w in weights.items():
-        t = target.get(key)
-        if t is None or w.ndim != 2 or tuple(t.shape) != (w.shape[0], w.shape[1] + count):
-            continue
-        zeros = torch.zeros(w.shape[0], count, dtype=w.dtype)
-        out[key] = torch.cat([w[:, :first], zeros, w[:, first:]], dim=1)
-    return out
-
-
-def load_widened_vecnormalize(path: str | Path, venv, first: int, count: int):
-    """The ``VecNormalize`` statistics at ``path`` over ``venv``, whose inputs have ``count``
-    more columns at column ``first`` than the statistics: those columns get mean 0 and
-    variance 1 (they are fed in their own units: the IMU's in units of the full thrust
-    acceleration, within ±3), the others keep their statistics."""
-    import pickle
-
-    from stable_baselines3.common.running_mean_std import RunningMeanStd
-
-    with open(path, "rb") as fh:
-        vn = pickle.load(fh)  # noqa: S301  (the run's own statistics file)
-    rms = vn.obs_rms
-    wide = RunningMeanStd(shape=(len(rms.mean) + count,))
-    wide.mean = np.insert(rms.mean, first, np.zeros(count))
-    wide.var = np.insert(rms.var, first, np.ones(count))
-    wide.count = rms.count
-    vn.obs_rms = wide
-    vn.observation_space = venv.observation_space  # set_venv checks it against the env's
-    vn.set_venv(venv)
-    return vn
-
-
 def set_initial_action(model, values: Any) -> None:
     """Start a new PPO policy at the mean action ``values`` (the ``initial_action``
     hyperparameter: one number in [-1, 1] per action channel): the action head's bias. SB3
@@ -414,15 +288,14 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
                 norm_kw["norm_obs"] = False
                 print(f"--init-from {run['init_from']}: no VecNormalize statistics, so "
                       "norm_obs is off (the initial policy expects raw observations)")
-            added_inputs = added_sensor_columns(
-                read_run(run["init_from"])[1].get("env_kwargs"), hp.get("env_kwargs"), venv,
-                int(init.observation_space.shape[0]), run["init_from"])
+            added_inputs = input_map(read_run(run["init_from"])[1], hp, venv,
+                                     int(init.observation_space.shape[0]), run["init_from"])
             if added_inputs is not None:
-                print(f"--init-from {run['init_from']}: {added_inputs[1]} sensor input(s) "
-                      f"added at column {added_inputs[0]} with zero weights")
+                print(f"--init-from {run['init_from']}: {added_inputs.added} added with zero "
+                      "weights")
             if norm_kw is not None and init_vn is not None:
                 venv = (VecNormalize.load(str(init_vn), venv) if added_inputs is None
-                        else load_widened_vecnormalize(init_vn, venv, *added_inputs))
+                        else load_widened_vecnormalize(init_vn, venv, added_inputs))
                 # VecNormalize.load keeps the pickled action space; this env's is the one to
                 # learn (it differs when the init policy lacked a channel: added_action_init)
                 venv.action_space = venv.venv.action_space
@@ -436,6 +309,10 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             from agents.features import StandardizedInputs
 
             fx = getattr(init.policy, "features_extractor", None)
+            if isinstance(fx, StandardizedInputs) and added_inputs is not None:
+                raise ValueError(f"--init-from {run['init_from']}: a policy that standardises "
+                                 "its own inputs (a behaviour clone) cannot take added inputs; "
+                                 "train with its env_kwargs, obs_features and history")
             if isinstance(fx, StandardizedInputs):
                 # a clone standardises its inputs itself: keep its input map
                 kwargs.setdefault("policy_kwargs", {})
@@ -458,7 +335,7 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             weights = widen_action_head(weights, model.policy.state_dict(),
                                         hp.get("added_action_init"), run["init_from"])
             if added_inputs is not None:
-                weights = widen_input_layer(weights, model.policy.state_dict(), *added_inputs)
+                weights = widen_input_layer(weights, model.policy.state_dict(), added_inputs)
             try:
                 model.policy.load_state_dict(weights, strict=False)
                 missing = set(model.policy.state_dict()) - set(weights) - {"log_std"}

@@ -269,7 +269,7 @@ def test_init_from_a_policy_without_a_throttle_channel_widens_its_action_head(tm
     (here with a learning rate of 0, so the weights are the loaded ones) with the given
     exploration σ; a mismatch without the key, a wrong count, a value out of range, or the
     key for matching heads is refused by name."""
-    from agents.rl.training import widen_action_head
+    from agents.rl.warm_start import widen_action_head
 
     base, wide = _base_and_continued(tmp_path, 'env_kwargs={"throttle_channel": true}',
                                      "added_action_init={action: [0.8], log_std: [-6.0]}",
@@ -338,3 +338,63 @@ def test_init_from_a_policy_without_the_imu_adds_its_inputs_with_zero_weights(tm
     with pytest.raises(ValueError, match="only the sensor channels"):
         tr.main([*QUICK, "--run-dir", str(tmp_path / "feat"), "--no-eval", "-n", "1024",
                  "--init-from", str(base), "--hyperparams", "obs_features=[log_altitude]"])
+
+
+def test_init_from_adds_a_history_with_zero_weights_to_the_older_slots(tmp_path):
+    """A policy trained without a history (and without the IMU) continues with both: its
+    inputs become the newest slot of the history, and the widened policy and critic compute
+    what the loaded ones did whatever the older slots and the past actions hold (learning rate
+    0, fixed statistics). Every input slot is normalised with the loaded statistics, the
+    action slots with mean 0 and variance 1. A longer history continues a history the same
+    way (the loaded slots become the newest); a shorter one, or none, is refused by name."""
+    import pickle
+
+    import torch
+
+    base, wide = _base_and_continued(tmp_path, 'env_kwargs={"sensors": ["imu"]}', "history=3",
+                                     "learning_rate=0.0", "normalize.update=false")
+    m0, vn0, _ = tr.load_trained(base)
+    m1, vn1, _ = tr.load_trained(wide)
+    n0 = m0.observation_space.shape[0]
+    n_obs = n0 + 2  # the planar IMU: 2 axes, after the env's 5 columns
+    assert m1.observation_space.shape == (3 * (n_obs + 1),)
+    rng = np.random.default_rng(0)
+    obs0 = rng.normal(size=(64, n0)).astype(np.float32)
+    obs1 = rng.normal(size=(64, 3 * (n_obs + 1))).astype(np.float32)
+    obs1[:, 2 * n_obs:3 * n_obs] = np.insert(obs0, 5, rng.normal(size=(2, 64)), axis=1)
+
+    def act_and_value(model, obs):
+        with torch.no_grad():
+            v = model.policy.predict_values(torch.as_tensor(obs)).numpy()
+        return model.policy.predict(obs, deterministic=True)[0], v
+
+    a0, v0 = act_and_value(m0, obs0)
+    a1, v1 = act_and_value(m1, obs1)
+    np.testing.assert_allclose(a1, a0, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(v1, v0, rtol=0, atol=1e-5)
+    with open(vn0, "rb") as f0, open(vn1, "rb") as f1:
+        s0, s1 = pickle.load(f0).obs_rms, pickle.load(f1).obs_rms
+    slot_mean = np.insert(s0.mean, 5, [0.0, 0.0])
+    slot_var = np.insert(s0.var, 5, [1.0, 1.0])
+    np.testing.assert_array_equal(s1.mean[:3 * n_obs], np.tile(slot_mean, 3))
+    np.testing.assert_array_equal(s1.var[:3 * n_obs], np.tile(slot_var, 3))
+    np.testing.assert_array_equal(s1.mean[3 * n_obs:], 0.0)
+    np.testing.assert_array_equal(s1.var[3 * n_obs:], 1.0)
+
+    longer = tmp_path / "longer"
+    assert tr.main([*QUICK, "--seed", "3", "--run-dir", str(longer), "-n", "1024", "--no-eval",
+                    "--no-tensorboard", "--init-from", str(wide), "--hyperparams",
+                    'env_kwargs={"sensors": ["imu"]}', "history=5", "learning_rate=0.0",
+                    "normalize.update=false"]) == 0
+    m2, _, _ = tr.load_trained(longer)
+    obs2 = rng.normal(size=(64, 5 * (n_obs + 1))).astype(np.float32)
+    obs2[:, 2 * n_obs:5 * n_obs] = obs1[:, :3 * n_obs]
+    obs2[:, 5 * n_obs + 2:] = obs1[:, 3 * n_obs:]  # the newest three actions
+    a2, v2 = act_and_value(m2, obs2)
+    np.testing.assert_allclose(a2, a1, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(v2, v1, rtol=0, atol=1e-5)
+    for history in ("2", "null"):
+        with pytest.raises(ValueError, match="a history \\(or a longer one\\)"):
+            tr.main([*QUICK, "--run-dir", str(tmp_path / f"h{history}"), "--no-eval",
+                     "-n", "1024", "--init-from", str(wide), "--hyperparams",
+                     'env_kwargs={"sensors": ["imu"]}', f"history={history}"])
