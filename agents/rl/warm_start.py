@@ -191,7 +191,8 @@ def input_map(init_config: dict[str, Any], config: dict[str, Any], venv, init_wi
         mapped = k0 * n_obs_old + slot * n_act + np.arange(n_act)
         weights.append(mapped if age < k0 else np.full(n_act, -1))
         stats.append(mapped)
-    added.append(f"a history of {k} decisions" + (f" (from {k0})" if k0 else ""))
+    added.append(f"a history of {k} decision{'s' if k > 1 else ''}"
+                 + (f" (from {k0})" if k0 else ""))
     return InputMap(np.concatenate(weights), np.concatenate(stats), " and ".join(added))
 
 
