@@ -106,6 +106,8 @@ MARGIN_INFO_KEYS = {"miss_m": "miss_distance_m", "speed_m_s": "touchdown_speed_m
 #: the low-gate cost's defaults (module docstring): gate height (m), envelope time (s), weight
 #: per metre of height lost (1/m)
 LOW_GATE_DEFAULTS = {"height_m": 15.0, "time_s": 1.0, "weight_per_m": 0.03}
+#: the decoded quantities the low-gate cost reads
+_LOW_GATE_QUANTITIES = ("altitude_m", "v_along_m_s", "v_cross_m_s")
 #: every potential; which of them fit an env, :data:`FAMILY_POTENTIALS` says
 POTENTIALS = ("surface_speed", "gate_speed_and_range", "touchdown_speeds_and_range")
 #: the potentials that fit each env family (``scenario.family``): the soft landing's surface
@@ -130,13 +132,13 @@ def gate_speed_and_range(obs: np.ndarray, consts: dict) -> tuple[np.ndarray, np.
     return v_gate, dist
 
 
-def touchdown_speeds_and_range(obs: np.ndarray, consts: dict
+def touchdown_speeds_and_range(obs: np.ndarray | dict[str, np.ndarray], consts: dict
                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Engine-off vertical speed at the landing surface (m/s), horizontal speed (m/s) and
     distance from the target of the lander's radial projection on the surface (m), shape (B,)
-    each, from ``LunarPinpointLanding-v3`` observations (B, n_obs): what the env's terminal
-    term measures of an episode truncated now."""
-    q = consts["decode"](np.asarray(obs, dtype=np.float64))
+    each, from ``LunarPinpointLanding-v3`` observations (B, n_obs), or their decoded
+    quantities: what the env's terminal term measures of an episode truncated now."""
+    q = obs if isinstance(obs, dict) else consts["decode"](np.asarray(obs, dtype=np.float64))
     h = np.maximum(q["altitude_m"], 0.0)
     rs = consts["surface_radius_m"]
     drop = 2.0 * consts["mu_m3_s2"] * (1.0 / rs - 1.0 / (rs + h))
@@ -210,8 +212,9 @@ class PotentialShaping(VecEnvWrapper):
         self.limits = {MARGIN_INFO_KEYS[k]: v for k, v in verdict_limits(thresholds).items()}
         self.low_gate = resolve_low_gate(low_gate, self.consts["family"])
 
-    def phi(self, obs: np.ndarray) -> np.ndarray:
-        """Φ of observations, shape (B,)."""
+    def phi(self, obs: np.ndarray | dict[str, np.ndarray]) -> np.ndarray:
+        """Φ of observations (or, for ``touchdown_speeds_and_range``, their decoded
+        quantities), shape (B,)."""
         if self.potential == "gate_speed_and_range":
             v_gate, dist = gate_speed_and_range(obs, self.consts)
             return -self.weight * (np.log1p(v_gate) + np.log1p(dist / 100.0))
@@ -223,27 +226,33 @@ class PotentialShaping(VecEnvWrapper):
 
     def reset(self) -> np.ndarray:
         obs = self.venv.reset()
-        self._phi = self.phi(obs)
+        # with the low gate (touchdown potential only) the observations are decoded once
+        q = self._decode(obs) if self.low_gate is not None else obs
+        self._phi = self.phi(q)
         if self.low_gate is not None:
-            self._height_m = self.height_m(obs)
+            self._height_m = q["altitude_m"]
         return obs
 
     def step_wait(self):
         obs, rew, done, infos = self.venv.step_wait()
-        phi_next = self.phi(obs)
+        q_next = self._decode(obs) if self.low_gate is not None else obs
+        phi_next = self.phi(q_next)
         target = np.where(done, 0.0, phi_next)  # Φ(terminal) = 0; obs of a done env is a reset
         shaped = rew + (self.gamma * target - self._phi).astype(np.float32)
         if self.low_gate is not None:
             # an episode's last decision is charged at its final observation: a lander
             # must not save the cost by falling through the envelope in one decision
-            last = obs.copy()
-            for i in np.flatnonzero(done):
-                last[i] = infos[i]["terminal_observation"]
-            q = self.consts["decode"](np.asarray(last, dtype=np.float64))
-            shaped -= self.low_gate_cost(q, self._height_m).astype(np.float32)
+            q_last = {k: q_next[k] for k in _LOW_GATE_QUANTITIES}
+            if done.any():
+                ended = np.flatnonzero(done)
+                q_end = self._decode(np.stack([infos[i]["terminal_observation"]
+                                               for i in ended]))
+                q_last = {k: v.copy() for k, v in q_last.items()}
+                for k in _LOW_GATE_QUANTITIES:
+                    q_last[k][ended] = q_end[k]
+            shaped -= self.low_gate_cost(q_last, self._height_m).astype(np.float32)
             # the next decision starts where this one ended, or at a reset's first observation
-            self._height_m = (np.where(done, self.height_m(obs), q["altitude_m"]) if done.any()
-                              else q["altitude_m"])
+            self._height_m = np.where(done, q_next["altitude_m"], q_last["altitude_m"])
         if (self.success_bonus or self.margin_bonus) and done.any():
             won = [i for i in np.flatnonzero(done) if infos[i].get("is_success")]
             shaped[won] += np.float32(self.success_bonus)
@@ -253,17 +262,16 @@ class PotentialShaping(VecEnvWrapper):
         self._phi = phi_next
         return obs, shaped.astype(np.float32), done, infos
 
-    def height_m(self, obs: np.ndarray) -> np.ndarray:
-        """Navigated height above the site (m) of observations (B, n_obs), shape (B,)."""
-        return self.consts["decode"](np.asarray(obs, dtype=np.float64))["altitude_m"]
+    def _decode(self, obs: np.ndarray) -> dict[str, np.ndarray]:
+        """The navigated quantities of observations (B, n_obs)."""
+        return self.consts["decode"](np.asarray(obs, dtype=np.float64))
 
     def low_gate_cost(self, obs: np.ndarray | dict[str, np.ndarray],
                       height_before_m: np.ndarray) -> np.ndarray:
         """The low-gate cost w·log(1 + e / 1 m/s)·Δh of the decisions that ended in
         observations (B, n_obs), or their decoded quantities, from heights
         ``height_before_m`` (B,) (m), shape (B,) (module docstring)."""
-        q = obs if isinstance(obs, dict) else self.consts["decode"](
-            np.asarray(obs, dtype=np.float64))
+        q = obs if isinstance(obs, dict) else self._decode(obs)
         gate = self.low_gate
         allowed = np.maximum(q["altitude_m"] - gate["height_m"], 0.0) / gate["time_s"]
         excess = np.maximum(np.hypot(q["v_along_m_s"], q["v_cross_m_s"]) - allowed, 0.0)

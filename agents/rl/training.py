@@ -291,6 +291,14 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             added_inputs = input_map(read_run(run["init_from"])[1], hp, venv,
                                      int(init.observation_space.shape[0]), run["init_from"])
             if added_inputs is not None:
+                from agents.features import StandardizedInputs
+
+                if isinstance(getattr(init.policy, "features_extractor", None),
+                              StandardizedInputs):
+                    raise ValueError(f"--init-from {run['init_from']}: a policy that "
+                                     "standardises its own inputs (a behaviour clone) cannot "
+                                     "take added inputs; train with its env_kwargs, "
+                                     "obs_features and history")
                 print(f"--init-from {run['init_from']}: {added_inputs.added} added with zero "
                       "weights")
             if norm_kw is not None and init_vn is not None:
@@ -309,10 +317,6 @@ def train(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: bool =
             from agents.features import StandardizedInputs
 
             fx = getattr(init.policy, "features_extractor", None)
-            if isinstance(fx, StandardizedInputs) and added_inputs is not None:
-                raise ValueError(f"--init-from {run['init_from']}: a policy that standardises "
-                                 "its own inputs (a behaviour clone) cannot take added inputs; "
-                                 "train with its env_kwargs, obs_features and history")
             if isinstance(fx, StandardizedInputs):
                 # a clone standardises its inputs itself: keep its input map
                 kwargs.setdefault("policy_kwargs", {})

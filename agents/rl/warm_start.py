@@ -170,30 +170,33 @@ def input_map(init_config: dict[str, Any], config: dict[str, Any], venv, init_wi
     if k is None:
         return InputMap(one, one.copy(), " and ".join(added))
     k0 = 0 if k0 is None else int(k0)
-    weights, stats = [], []
-    for s in range(k):  # input slots, oldest first
-        age = k - 1 - s
-        if k0 == 0:
-            weights.append(one if age == 0 else np.full(n_obs_new, -1))
-            stats.append(one)
-            continue
-        slot = k0 - 1 - min(age, k0 - 1)
-        mapped = np.where(one >= 0, slot * n_obs_old + one, -1)
-        weights.append(mapped if age < k0 else np.full(n_obs_new, -1))
-        stats.append(mapped)
-    for s in range(k):  # action slots, oldest first
-        age = k - 1 - s
-        if k0 == 0:
-            weights.append(np.full(n_act, -1))
-            stats.append(np.full(n_act, -1))
-            continue
-        slot = k0 - 1 - min(age, k0 - 1)
-        mapped = k0 * n_obs_old + slot * n_act + np.arange(n_act)
-        weights.append(mapped if age < k0 else np.full(n_act, -1))
-        stats.append(mapped)
+    # a policy without a history saw one input slot and no action slot
+    obs_w, obs_s = _stacked_slots(one, n_obs_old, 0, k, max(k0, 1))
+    act_w, act_s = _stacked_slots(np.arange(n_act), n_act, k0 * n_obs_old, k, k0)
     added.append(f"a history of {k} decision{'s' if k > 1 else ''}"
                  + (f" (from {k0})" if k0 else ""))
-    return InputMap(np.concatenate(weights), np.concatenate(stats), " and ".join(added))
+    return InputMap(np.concatenate([obs_w, act_w]), np.concatenate([obs_s, act_s]),
+                    " and ".join(added))
+
+
+def _stacked_slots(one: np.ndarray, stride: int, offset: int, k: int, k_old: int
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """``(weights, stats)`` maps (module :class:`InputMap`) of k slots, oldest first, of
+    which the loaded policy had the newest ``k_old`` (0: none), each ``stride`` columns wide
+    from its column ``offset``; ``one`` maps one slot's columns to the loaded slot's (-1: new).
+    A slot older than the loaded ones takes the statistics of the oldest loaded slot."""
+    width = len(one)
+    if k_old == 0:
+        none = np.full(k * width, -1)
+        return none, none.copy()
+    weights, stats = [], []
+    for s in range(k):
+        age = k - 1 - s
+        slot = k_old - 1 - min(age, k_old - 1)
+        mapped = np.where(one >= 0, offset + slot * stride + one, -1)
+        weights.append(mapped if age < k_old else np.full(width, -1))
+        stats.append(mapped)
+    return np.concatenate(weights), np.concatenate(stats)
 
 
 def widen_input_layer(weights: dict, target: dict, columns: InputMap) -> dict:
