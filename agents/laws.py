@@ -72,6 +72,9 @@ class SB3Law(GuidanceLaw):
         self._stack: HistoryStack | None = None
         self._lstm_state: tuple[np.ndarray, np.ndarray] | None = None
         self._last_action: np.ndarray | None = None
+        #: the model's inputs (N, n_in) at the last decision, before normalisation (the
+        #: observation, the features and, with a history, the stacked row)
+        self.last_inputs: np.ndarray | None = None
 
     @classmethod
     def from_path(cls, path: str | Path, name: str | None = None) -> SB3Law:
@@ -102,6 +105,7 @@ class SB3Law(GuidanceLaw):
             obs = self._stacked(np.asarray(obs, dtype=np.float32), start, first)
         if first:
             self._check_width(obs)
+        self.last_inputs = np.asarray(obs, dtype=np.float32)
         if self.vecnormalize is not None:
             obs = self.vecnormalize.normalize_obs(obs)
         if self.recurrent:
@@ -111,6 +115,15 @@ class SB3Law(GuidanceLaw):
             action, _ = self.model.predict(obs, deterministic=True)
         self._last_action = np.asarray(action, dtype=np.float32).reshape(nav.n, -1)
         return action
+
+    def flown(self, nav: Navigation, actions: np.ndarray) -> None:
+        """Another policy flew ``actions`` (N, n_act) at the decision of ``nav`` (this law is
+        a DAgger student while its teacher flies): a history records those actions, the ones
+        that led to the next input, as it records its own when it flies. (A recurrent policy's
+        memory reads the observations only; it needs nothing.)"""
+        if self._last_action is not None:
+            self._last_action = np.asarray(actions, dtype=np.float32).reshape(
+                self._last_action.shape)
 
     def _stacked(self, obs: np.ndarray, start: np.ndarray, first: bool) -> np.ndarray:
         """This decision's stacked inputs: the rows that start an episode begin a history at

@@ -135,6 +135,10 @@ class FlightComputer:
         ``actions_from_controls(controls (N, n_control)) -> actions (N, n_act) float32``: the
         env's inverse of its control map, for model-based laws that compute the dynamics
         model's controls (thrust angles in rad, then the throttle).
+    controls_from_actions : callable
+        ``controls_from_actions(actions (N, n_act)) -> controls (N, n_control)``: the env's
+        control map (thrust angles in rad, then the throttle the engine flies), for laws whose
+        memory must follow actions another policy flew (a DAgger teacher's thrust estimate).
     """
 
     env_id: str
@@ -154,6 +158,7 @@ class FlightComputer:
     frame_of: Callable[[np.ndarray], LocalFrame]
     encoder: Callable
     actions_from_controls: Callable
+    controls_from_actions: Callable
 
     # -- the nominal vehicle (what the flight computer was loaded with) ----------------------
     @property
@@ -211,7 +216,8 @@ class FlightComputer:
                    observation_from_state=core.observation_from_state,
                    frame_of=fam.frame_function(sc),
                    encoder=fam.encoder(sc, bool(task.throttle_channel)),
-                   actions_from_controls=task.actions_from_controls)
+                   actions_from_controls=task.actions_from_controls,
+                   controls_from_actions=task.controls_from_actions)
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,13 @@ import yaml
 
 from agents.common.actor import actor_parameters
 from agents.common.runs import write_text_atomic
-from agents.imitation.policy import _split_by_trajectory, build_model, fit_policy, policy_inputs
+from agents.imitation.policy import (
+    _split_by_trajectory,
+    build_model,
+    fit_policy,
+    imitation_history,
+    policy_inputs,
+)
 
 _BC_CKPT = re.compile(r"^bc_epoch_(\d+)\.pt$")
 
@@ -58,6 +64,7 @@ def train_bc(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume: boo
 
     from agents.imitation.sources import load_run_dataset
 
+    imitation_history(hp, "bc")  # refused: a dataset holds no histories
     ds, env_kwargs = load_run_dataset(run, hp.get("env_kwargs"))
     bc = hp["bc"]
     seed = int(run["seed"])

@@ -208,6 +208,9 @@ def main(argv: list[str] | None = None) -> int:
 
                 IMITATION_FAMILIES.of(get_scenario(dataset.meta["scenario"])).check_teacher(
                     parse_teacher(hp["dagger"].get("teacher")))
+            from agents.imitation.policy import imitation_history
+
+            imitation_history(hp, args.mode)  # a history the run cannot take, refused here
         from agents.common.runs import claim_run_dir
 
         try:  # both created atomically: concurrent runs never share a directory

@@ -19,6 +19,7 @@ from agents.imitation.families import IMITATION_FAMILIES, DaggerRequest
 from agents.imitation.policy import (
     build_model,
     fit_policy,
+    imitation_history,
     load_learner,
     load_policy_model,
     policy_inputs,
@@ -37,10 +38,20 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     visited states with the teacher ``hp["dagger"]["teacher"]`` (one contract for every
     family: :mod:`agents.imitation.teachers`; checked before anything is loaded or flown).
 
+    With ``hp["history"] = k`` (:func:`agents.imitation.policy.imitation_history`) the student
+    is given its last k inputs and actions (:mod:`agents.features.history`), as a PPO run with
+    ``history: k`` is. Its labels' inputs are the stacked inputs it built in the roll-outs, from
+    the actions flown (the teacher's where it flew). Without an ``--init`` policy, the teacher
+    flies every episode of the first iteration (Ross et al.'s β₁ = 1). The student is fitted
+    on those flights, its inputs standardised with their statistics, instead of cloning the
+    dataset, whose samples have no histories. The dataset still names the env's configuration.
+
     Raises
     ------
     ValueError
-        The teacher setting names no teacher, or one the dataset's env family does not offer.
+        The teacher setting names no teacher, or one the dataset's env family does not offer;
+        a ``history`` the run cannot take (:func:`~agents.imitation.policy.
+        imitation_history`).
     """
     import torch as th
     from stable_baselines3 import PPO
@@ -50,6 +61,7 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
 
     dg = hp["dagger"]
     teacher = parse_teacher(dg.get("teacher"))
+    history_k = imitation_history(hp, "dagger")
     ds, env_kwargs = load_run_dataset(run, hp.get("env_kwargs"))
     # the family's own refusal (a teacher it cannot label with), before any training
     IMITATION_FAMILIES.of(get_scenario(ds.meta["scenario"])).check_teacher(teacher)
@@ -77,12 +89,20 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
             init = load_policy_model(run["init"], device=run["device"])
             model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed, run["device"],
                                 hp.get("obs_features"),
-                                True if hp.get("standardize_inputs") else None)
+                                True if hp.get("standardize_inputs") else None, history_k)
             try:
                 model.policy.load_state_dict(init.policy.state_dict())
             except RuntimeError as exc:
                 raise ValueError(f"--init {run['init']}: its policy does not match "
-                                 f"policy_kwargs {hp['policy_kwargs']} ({exc})") from None
+                                 f"policy_kwargs {hp['policy_kwargs']} and history={history_k} "
+                                 f"({exc})") from None
+        elif history_k is not None:
+            print(f"A student with a history of {history_k}: the teacher flies the first "
+                  "iteration; the student is fitted on its flights (the dataset holds no "
+                  "histories)")
+            # inputs standardised with the first labels' statistics once they exist
+            model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed, run["device"],
+                                hp.get("obs_features"), None, history_k)
         else:
             print("No --init policy: behaviour cloning first (bc section of the config)")
             bc_dir = run_dir / "bc_init"
@@ -94,8 +114,15 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
             model = train_bc(hp, dict(run, no_tensorboard=True), bc_dir)
     policy = model.policy
     rng = np.random.default_rng(seed + 7919)
-    inputs = policy_inputs(run["env"], env_kwargs, hp.get("obs_features"))
-    ds_inputs = inputs(ds.observations)
+    teacher_first = history_k is not None and not run.get("init")
+    if history_k is None:
+        inputs = policy_inputs(run["env"], env_kwargs, hp.get("obs_features"))
+        ds_inputs, ds_actions = inputs(ds.observations), ds.actions
+    else:  # the labels hold the student's stacked inputs, features included
+        def inputs(x):
+            return np.asarray(x, dtype=np.float32)
+
+        ds_inputs = ds_actions = None
     logger = _logger(run_dir, not run.get("no_tensorboard"))
     scenario = get_scenario(ds.meta["scenario"])
     family = IMITATION_FAMILIES.of(scenario)
@@ -122,15 +149,25 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
                 load_learner=load_learner, obs_features=hp.get("obs_features"),
                 n_episodes=int(dg["n_episodes"]), seed=ep_seed, settings=dict(dg),
                 n_workers=int(dg.get("n_label_workers", 1)),
-                store_dir=lbdir / f"iter_{it:03d}_parts", progress=not run.get("no_progress"))
+                store_dir=lbdir / f"iter_{it:03d}_parts", progress=not run.get("no_progress"),
+                history=history_k, teacher_throughout=teacher_first and it == 0)
             lab, roll = family.dagger_iteration(scenario, request)
             tmp = lb_file.with_suffix(".tmp.npz")
             np.savez_compressed(tmp, **lab, **{k: np.array(v) for k, v in roll.items()})
             os.replace(tmp, lb_file)
-        print(f"DAgger iteration {it}: policy roll-outs success "
+        who = "teacher" if teacher_first and it == 0 else "policy"
+        print(f"DAgger iteration {it}: {who} roll-outs success "
               f"{100 * roll['rollout_success_rate']:.1f} %, mean fuel "
               f"{roll['rollout_fuel_mean_kg']:.2f} kg; {len(lab['obs'])} expert labels",
               flush=True)
+        if teacher_first and it == 0 and hp.get("standardize_inputs"):
+            # the student's input statistics: those of the teacher's flights, as a clone
+            # takes its dataset's (same seed: the same initial weights)
+            th.manual_seed(seed)
+            model = build_model(run["env"], env_kwargs, hp["policy_kwargs"], seed,
+                                run["device"], hp.get("obs_features"), inputs(lab["obs"]),
+                                history_k)
+            policy = model.policy
         agg_obs, agg_act = [], []
         for j in range(it + 1):
             with np.load(lbdir / f"iter_{j:03d}.npz") as z:
@@ -147,11 +184,13 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
         if fraction is None:
             # pooled (Ross et al. 2011's aggregate): one epoch is one pass over the dataset and
             # every label so far, drawn alike
-            main_obs, main_act = np.concatenate([ds_inputs, eo]), np.concatenate([ds.actions, ea])
+            main_obs, main_act = ((eo, ea) if ds_inputs is None else
+                                  (np.concatenate([ds_inputs, eo]),
+                                   np.concatenate([ds_actions, ea])))
             eo = ea = None
             fraction = 0.0
         else:
-            main_obs, main_act = ds_inputs, ds.actions
+            main_obs, main_act = ds_inputs, ds_actions
         stats = fit_policy(policy, main_obs, main_act, n_epochs=int(dg["n_epochs"]),
                            batch_size=int(dg["batch_size"]),
                            learning_rate=float(dg["learning_rate"]),
@@ -181,7 +220,8 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     n_select = int(dg.get("select_states") or 0)
     if n_select > 0:
         model = select_iteration(run_dir, run["env"], env_kwargs, hp.get("obs_features"),
-                                 n_select, int(dg.get("select_seed", 50000)), run["device"])
+                                 n_select, int(dg.get("select_seed", 50000)), run["device"],
+                                 history_k)
     path = _save_final(model, run_dir)
     print(f"DAgger done ({dg['n_iterations']} iterations). Model: {path}")
     return model
@@ -189,7 +229,7 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
 
 def select_iteration(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | None,
                      obs_features: list[str] | None, n_states: int, seed: int,
-                     device: str = "cpu"):
+                     device: str = "cpu", history: int | None = None):
     """The DAgger iteration whose policy lands most often on held-out validation states.
 
     Ross et al. (2011) guarantee the *best* of the iterates, not the last: the policy of one
@@ -197,7 +237,8 @@ def select_iteration(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | No
     iteration 6, 99.0 % after 7, on the evaluation's 200 states). Each checkpoint flies cases
     ``seed .. seed + n_states - 1`` (default seed 50000: disjoint from the dataset's, the
     roll-outs' and the evaluation's cases; :mod:`agents.rl.selection`); ties go to the later
-    iteration. The scores are written to ``selection.yml``; returns the chosen model.
+    iteration. ``history``: the run's (the policies' inputs). The scores are written to
+    ``selection.yml``; returns the chosen model.
     """
     from stable_baselines3 import PPO
 
@@ -208,7 +249,8 @@ def select_iteration(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | No
     if not done:
         raise FileNotFoundError(f"no DAgger checkpoint in {ckdir}")
     scores = score_candidates(done, env_id, env_kwargs,
-                              obs_features, n_states, seed, device, label="DAgger iteration")
+                              obs_features, n_states, seed, device, label="DAgger iteration",
+                              history=history)
     best = best_of(scores)
     write_selection(run_dir, seed, n_states, "iteration", scores, best)
     print(f"DAgger selection: iteration {best['key']} ({100 * best['success_rate']:.1f} %)")

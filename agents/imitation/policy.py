@@ -23,13 +23,15 @@ def _policy_kwargs(pk: dict[str, Any]) -> dict[str, Any]:
 
 def build_model(env_id: str, env_kwargs: dict[str, Any] | None, policy_kwargs: dict[str, Any],
                 seed: int, device: str = "cpu", obs_features: list[str] | None = None,
-                standardize_inputs: np.ndarray | bool | None = None):
+                standardize_inputs: np.ndarray | bool | None = None,
+                history: int | None = None):
     """A fresh SB3 PPO model (MlpPolicy) on a one-lander SB3 vec env of ``env_id``.
 
     Only its policy is trained here; the PPO wrapper makes the saved zip loadable by
     ``PPO.load`` and fine-tunable. ``obs_features`` (:mod:`agents.features`) widen its input
-    as in RL training; the run's ``config.yml`` records them, so :class:`agents.evaluate.
-    SB3Law` and ``train.py --init-from`` apply the same inputs.
+    as in RL training, and a ``history`` of k decisions stacks the last k inputs and actions
+    (:class:`agents.features.history.HistoryWrapper`); the run's ``config.yml`` records both,
+    so :class:`agents.laws.SB3Law` and ``train.py --init-from`` apply the same inputs.
 
     ``standardize_inputs``: an array of policy inputs (N, n_in) whose statistics the policy
     standardises its inputs with (:class:`agents.features.StandardizedInputs`), or True for
@@ -44,6 +46,10 @@ def build_model(env_id: str, env_kwargs: dict[str, Any] | None, policy_kwargs: d
         from agents.features import ObsFeatureWrapper
 
         venv = ObsFeatureWrapper(venv, obs_features)
+    if history is not None:
+        from agents.features.history import HistoryWrapper
+
+        venv = HistoryWrapper(venv, history)
     pk = _policy_kwargs(policy_kwargs)
     if standardize_inputs is not None and standardize_inputs is not False:
         from agents.features import StandardizedInputs, standardized_inputs_kwargs
@@ -73,11 +79,25 @@ def policy_inputs(env_id: str, env_kwargs: dict[str, Any] | None,
 
 
 def load_learner(policy_file: str | Path, env_id: str, env_kwargs: dict[str, Any] | None,
-                 obs_features: list[str] | None):
-    """The saved policy's deterministic actions as ``fn(obs (N, n_obs)) -> actions (N, n_act)``
-    (the env's raw observations; the ``obs_features`` are appended here). Module level: the
-    families' DAgger tasks receive it (:class:`optimizers.optimum.DaggerRequest`)."""
+                 obs_features: list[str] | None, history: int | None = None):
+    """The saved policy as a DAgger student. Module level: the families' DAgger tasks receive
+    it (:class:`agents.imitation.families.DaggerRequest`).
+
+    Without a ``history``: its deterministic actions as ``fn(obs (N, n_obs)) -> actions
+    (N, n_act)`` (the env's raw observations; the ``obs_features`` are appended here).
+
+    With a ``history`` (k decisions, :mod:`agents.features.history`): a guidance law
+    (:class:`agents.laws.SB3Law`) with memory per lander, which the roll-out resets, asks
+    and tells the actions flown (:meth:`~agents.laws.SB3Law.flown`: the teacher's where it
+    flies), so that its stacked inputs (``last_inputs``, the labels' inputs) are those it
+    would build flying alone.
+    """
     model = load_policy_model(policy_file)
+    if history is not None:
+        from agents.laws import SB3Law
+
+        return SB3Law(model, None, name="DAgger student", obs_features=obs_features,
+                      history=history)
     inputs = policy_inputs(env_id, env_kwargs, obs_features)
     return lambda obs: model.predict(inputs(obs), deterministic=True)[0]
 
@@ -217,3 +237,43 @@ def _split_by_trajectory(ds, val_fraction: float, rng: np.random.Generator):
     val_ids = rng.choice(ids, size=n_val, replace=False) if n_val else np.zeros(0, int)
     is_val = np.isin(tid, val_ids)
     return ~is_val, is_val
+
+
+def imitation_history(hp: dict[str, Any], mode: str) -> int | None:
+    """The run's ``history`` (k decisions, :mod:`agents.features.history`), checked for its
+    ``mode`` (``bc`` or ``dagger``) before any work starts.
+
+    A student with a history learns by DAgger from a law teacher: the teacher flies the first
+    iteration and the student's own stacked inputs are the labels' inputs. A dataset holds no
+    histories, so it is not trained on.
+
+    Raises
+    ------
+    ValueError
+        ``history`` is not an integer from 1 to :data:`agents.features.history.MAX_HISTORY`;
+        or it is set for behaviour cloning, with a built-in DAgger teacher (``privileged``,
+        ``navigated``), or with a ``dagger_fraction`` (a share of every minibatch from the
+        dataset).
+    """
+    from agents.features.history import validate_history
+
+    k = validate_history(hp.get("history"))
+    if k is None:
+        return None
+    if mode != "dagger":
+        raise ValueError(f"history={k}: behaviour cloning trains on a dataset, which holds no "
+                         "histories; a student with a history learns by DAgger "
+                         "(python -m agents.imitation dagger) from a law teacher")
+    from agents.imitation.teachers import parse_teacher
+
+    dg = hp.get("dagger") or {}
+    teacher = parse_teacher(dg.get("teacher"))
+    if not teacher.is_law:
+        raise ValueError(f"history={k} with dagger teacher = {teacher.kind!r}: a student with "
+                         "a history learns from a law teacher (dagger.teacher a law spec, "
+                         "e.g. 'zem-zev'), which flies along and labels what the student sees")
+    if dg.get("dagger_fraction") is not None:
+        raise ValueError(f"history={k} with dagger_fraction={dg['dagger_fraction']!r}: the "
+                         "dataset holds no histories, so a student with a history trains on "
+                         "the DAgger labels alone; set dagger_fraction: null")
+    return k

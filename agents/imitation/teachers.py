@@ -122,10 +122,14 @@ class LawRolloutTeacher(GuidanceLaw):
     ----------
     teacher : GuidanceLaw
         Not privileged (the families' ``privileged`` teacher is their own).
-    learner : callable
-        ``learner(obs (N, n_obs)) -> actions (N, n_act)``: the policy being trained.
+    learner : callable or GuidanceLaw
+        The policy being trained: ``learner(obs (N, n_obs)) -> actions (N, n_act)``, whose
+        labels' inputs are the observations; or, for a student with memory, a guidance law
+        with ``last_inputs`` (the inputs it decided on, the labels' inputs) and ``flown`` (told
+        the actions flown, the teacher's where it flies), reset with the teacher.
     switch_s : ndarray, shape (N,)
-        Per-case episode time (s) at which the learner takes over (0: the learner throughout).
+        Per-case episode time (s) at which the learner takes over (0: the learner throughout;
+        inf: the teacher throughout).
     """
 
     name = "DAgger roll-out (same-view law)"
@@ -142,22 +146,30 @@ class LawRolloutTeacher(GuidanceLaw):
     def reset(self, computer, case_ids: np.ndarray) -> None:
         super().reset(computer, case_ids)
         self.teacher.reset(computer, case_ids)
+        if isinstance(self.learner, GuidanceLaw):
+            self.learner.reset(computer, case_ids)
 
     def act(self, nav: Navigation) -> np.ndarray:
         lab = actions_of(self.teacher.computer, self.teacher.act(nav))
         status = np.asarray(getattr(self.teacher, "last_status", None) or ["law"] * nav.n,
                             dtype="<U12")
         m = np.asarray(nav.active, dtype=bool) & ~np.isin(status, _GUESSES)
-        self.records["obs"].append(np.asarray(nav.obs)[m])
+        if isinstance(self.learner, GuidanceLaw):  # a student with memory
+            pol = actions_of(self.learner.computer, self.learner.act(nav))
+            inputs = self.learner.last_inputs
+        else:
+            pol, inputs = self.learner(nav.obs), nav.obs
+        self.records["obs"].append(np.asarray(inputs)[m])
         self.records["actions"].append(lab[m])
         self.records["status"].append(status[m])
-        pol = self.learner(nav.obs)
         flown = np.where((nav.t_s < self.switch_s)[:, None], lab, pol).astype(np.float32)
         # the teacher's memory must follow what was flown: the window law's thrust estimate,
         # fed its own controls while the student flew, was 8 % off (RMS over 12 student
-        # flights; 0.4 % fed the flown ones), so its labels planned with the wrong engine
-        if isinstance(self.teacher, FollowsFlight):
-            self.teacher.flown(nav, flown)
+        # flights; 0.4 % fed the flown ones), so its labels planned with the wrong engine;
+        # a student's history, likewise, holds the actions that led to its inputs
+        for law in (self.teacher, self.learner):
+            if isinstance(law, FollowsFlight):
+                law.flown(nav, flown)
         return flown
 
 
@@ -165,15 +177,16 @@ def law_dagger_chunk(job: dict[str, Any]) -> dict[str, Any]:
     """Executor task: one chunk of DAgger roll-outs labelled by the law ``job["teacher"]``
     (a law spec) flying along (:class:`LawRolloutTeacher`). ``job`` holds ``model``,
     ``load_learner``, ``env_id``, ``env_kwargs``, ``obs_features``, ``seed``, ``n_episodes``,
-    ``switch_s`` and ``teacher``."""
+    ``switch_s``, ``teacher`` and ``history`` (the student's, or None)."""
     import torch as th
 
     from guidance.registry import LawContext, build_law
     from lunar_env import get_scenario
 
     th.set_num_threads(1)
+    memory = {} if job.get("history") is None else {"history": int(job["history"])}
     learner = job["load_learner"](job["model"], job["env_id"], job["env_kwargs"],
-                                  job["obs_features"])
+                                  job["obs_features"], **memory)
     switch = np.asarray(job["switch_s"], dtype=np.float64)
     law = build_law(job["teacher"], LawContext(env_id=job["env_id"],
                                                env_kwargs=dict(job["env_kwargs"]),
@@ -199,11 +212,16 @@ def law_dagger_rollouts(chunk_fn, model_path, load_learner, env_id: str,
                         env_kwargs: dict[str, Any] | None, n_episodes: int, seed: int,
                         obs_features: list[str] | None, beta: float, teacher: Teacher,
                         n_workers: int = 1, cache_dir=None, progress: bool = True,
+                        history: int | None = None, teacher_throughout: bool = False,
                         ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     """One DAgger iteration's roll-outs flown in chunks by ``chunk_fn`` (a module-level
     executor task: :func:`law_dagger_chunk` for a law teacher, a family's own for its built-in
     teachers), the teacher flying each episode up to its switch time (:func:`switch_times`)
     and the policy saved at ``model_path`` after it; sub-env i is seeded ``seed + i``.
+    ``teacher_throughout``: the teacher flies every episode to its end (Ross et al. 2011's
+    first iteration, β₁ = 1), the policy only asked. ``history``: the student's (k decisions,
+    loaded by ``load_learner(..., history=k)``); the labels' inputs are then its stacked
+    inputs, features included.
 
     Returns the labels (``obs``, ``actions``, ``status`` and whatever else the chunks record)
     and the roll-outs' figures: the success rate and mean fuel of the policy-only episodes
@@ -219,6 +237,8 @@ def law_dagger_rollouts(chunk_fn, model_path, load_learner, env_id: str,
     from optimizers.common.executor import LocalExecutor, ResultStore, Task, TaskKey, run_tasks
 
     switch = switch_times(n_episodes, beta, seed)
+    if teacher_throughout:
+        switch = np.full(int(n_episodes), np.inf)
     n_workers = max(1, min(int(n_workers), int(n_episodes)))
     bounds = np.linspace(0, int(n_episodes), n_workers + 1).astype(int)
     env = make_env(env_id, env_kwargs)
@@ -227,13 +247,16 @@ def law_dagger_rollouts(chunk_fn, model_path, load_learner, env_id: str,
     jobs = [{"model": str(model_path), "load_learner": load_learner, "env_id": env_id,
              "env_kwargs": dict(env_kwargs or {}), "obs_features": obs_features,
              "scenario": scenario, "seed": int(seed) + int(lo), "n_episodes": int(hi - lo),
-             "switch_s": switch[lo:hi].tolist(), "teacher": str(teacher)}
+             "switch_s": switch[lo:hi].tolist(), "teacher": str(teacher), "history": history}
             for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
     # each chunk's result is stored as it arrives and read back on resume
     store = None if cache_dir is None else ResultStore(
         cache_dir, identity={"model": str(model_path), "env_id": env_id, "seed": int(seed),
                              "n_episodes": int(n_episodes), "beta": float(beta),
-                             "teacher": str(teacher)},
+                             "teacher": str(teacher),
+                             # only where set: the chunks of runs without them keep their key
+                             **({"history": int(history)} if history is not None else {}),
+                             **({"teacher_throughout": True} if teacher_throughout else {})},
         fmt="pickle")
     tasks = [Task(TaskKey(f"dagger-{env_id}", int(seed), k), chunk_fn, (job,))
              for k, job in enumerate(jobs)]

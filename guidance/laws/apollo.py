@@ -257,6 +257,16 @@ class _ExplicitLaw(GuidanceLaw):
             self.estimator.record(thr, mass_kg, nav.active)
         return ThrustCommand(a_thrust, thr if self.throttled else None)
 
+    def flown(self, nav: Navigation, actions: np.ndarray) -> None:
+        """Another policy flew ``actions`` (N, n_act) at the decision of ``nav`` (this law
+        is a DAgger teacher flying along): the thrust estimate records the throttle those
+        actions gave the engine, not this law's own, so the next IMU reading is divided by the
+        throttle that produced it. (Measured on ``LunarPinpointLanding-v3`` with the IMU: fed
+        its own throttles while a student flew, ZEM/ZEV's engine estimate was off by the ratio
+        of the two throttles, and its labels planned with that engine.)"""
+        if self.estimator is not None:
+            self.estimator.record_flown(self.computer, actions, nav.frame.mass_kg, nav.active)
+
 
 class AugmentedApolloLaw(_ExplicitLaw):
     """Augmented Apollo explicit guidance ([L18]; k_r = 12 Apollo [K74], 6 ZEM/ZEV [GHW]).

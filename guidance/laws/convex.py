@@ -241,6 +241,14 @@ class ConvexReplanningLaw(GuidanceLaw):
             self.estimator.record(throttle, mass_kg, nav.active)
         return self.computer.actions_from_controls(controls)
 
+    def flown(self, nav: Navigation, actions: np.ndarray) -> None:
+        """Another policy flew ``actions`` (N, n_act) at the decision of ``nav`` (this law
+        is a DAgger teacher flying along): the thrust estimate records the throttle those
+        actions gave the engine, not the plan's."""
+        if self.estimator is not None and "imu" in nav.sensors:
+            self.estimator.record_flown(self.computer, actions,
+                                        nav.state_nd[:, -1] * self._mass_ref_kg, nav.active)
+
 
 def convex_from_spec(spec, context) -> GuidanceLaw:
     """``convex[:every=S,nodes=K,iters=I,first_iter=J,engine=constant|throttled,tmax=G,

@@ -89,3 +89,13 @@ class ThrustScaleEstimator:
         a = np.asarray(active, dtype=bool)
         self._throttle = np.where(a, np.asarray(throttle, dtype=np.float64), np.nan)
         self._mass_kg = np.where(a, np.asarray(mass_kg, dtype=np.float64), np.nan)
+
+    def record_flown(self, computer, actions: np.ndarray, mass_kg: np.ndarray,
+                     active: np.ndarray) -> None:
+        """:meth:`record` of the throttles the env's engine flies for ``actions`` (N, n_act)
+        (``computer.controls_from_actions``; full thrust without a throttle channel): what a
+        law calls when another policy flew this decision (a DAgger student), so that the next
+        reading is divided by the throttle that produced it, not by the law's own command."""
+        controls = computer.controls_from_actions(np.asarray(actions, dtype=np.float64))
+        throttle = controls[:, -1] if computer.throttled else np.ones(len(controls))
+        self.record(throttle, mass_kg, active)

@@ -107,6 +107,12 @@ class DaggerRequest:
         A :class:`optimizers.common.executor.ResultStore` for the iteration's parts: parts
         finished before a kill are read back, not recomputed.
     progress : bool
+    history : int or None
+        The student's history (k decisions, :mod:`agents.features.history`): ``load_learner``
+        is then called with ``history=k`` and the labels' inputs are the student's stacked
+        inputs. Law teachers only (:mod:`agents.imitation.teachers`).
+    teacher_throughout : bool
+        The teacher flies every roll-out to its end (DAgger's first iteration, β₁ = 1).
     """
 
     env_id: str
@@ -120,6 +126,13 @@ class DaggerRequest:
     n_workers: int = 1
     store_dir: Path | None = None
     progress: bool = True
+    history: int | None = None
+    teacher_throughout: bool = False
+
+    def memory_kwargs(self) -> dict[str, Any]:
+        """``history`` and ``teacher_throughout`` as keyword arguments of
+        :func:`agents.imitation.teachers.law_dagger_rollouts`."""
+        return {"history": self.history, "teacher_throughout": bool(self.teacher_throughout)}
 
 
 class ImitationFamily(ABC):

@@ -299,7 +299,8 @@ def test_dagger_rollouts_with_a_law_teacher_on_the_throttled_engine(monkeypatch)
     learner's roll-out is scored. The learner here is a fixed action (no policy file needed:
     ``load_learner`` is any module-level loader). Each decision's labels are the teacher
     law's own actions on the navigation recorded there: a twin of the law, asked the same
-    navigations in the same order, gives them again, before and after the switch."""
+    navigations in the same order and told the same actions flown, gives them again, before
+    and after the switch."""
     import copy
 
     import agents.imitation.families.pinpoint as lab_mod
@@ -347,6 +348,7 @@ def test_dagger_rollouts_with_a_law_teacher_on_the_throttled_engine(monkeypatch)
     n_learner = 0
     for k, nav in enumerate(rec.navs):
         again = actions_of(rec.twin.computer, rec.twin.act(nav))[nav.active]
+        rec.twin.flown(nav, rec.flown[k])  # its engine estimate follows the flight
         np.testing.assert_array_equal(rec.records["actions"][k], again)
         np.testing.assert_array_equal(rec.records["obs"][k], nav.obs[nav.active])
         n_learner += int(np.any(nav.active & (nav.t_s >= rec.switch_s)))

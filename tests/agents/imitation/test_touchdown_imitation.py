@@ -19,13 +19,18 @@ OPTS = {"n_steps": 400, "check": "doubling", "tol_radius_m": None, "tol_speed_m_
 
 
 @pytest.fixture(scope="module")
-def dataset(minari_dir, tmp_path_factory):
-    """``lunar dataset --env LunarPinpointLanding-v3 --n 2 --minari optimal-v0``."""
+def dataset_file(minari_dir, tmp_path_factory):
+    """``lunar dataset --env LunarPinpointLanding-v3 --n 2 --minari optimal-v0``: its file."""
     out = tmp_path_factory.mktemp("ds") / "v3.npz"
     assert dataset_cli.main(["--env", ENV_ID, "--n", "2", "--seed", "1", "--workers", "1",
                              "--out", str(out), "--no-progress", "--minari",
                              "optimal-v0"]) == 0
-    return load_dataset(out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def dataset(dataset_file):
+    return load_dataset(dataset_file)
 
 
 def test_recipe_rows_and_refused_noise():
@@ -129,3 +134,151 @@ def test_a_law_teacher_labels_a_v3_dagger_iteration():
     assert len(lab["obs"]) > 20 and np.isfinite(lab["actions"]).all()
     assert np.abs(lab["actions"]).max() <= 1.0 and lab["actions"][:, :2].std(axis=0).min() > 0.0
     assert roll["rollout_success_rate"] == 0.0 and roll["rollout_policy_only_episodes"] == 2.0
+
+
+def _throttled_down(obs: np.ndarray) -> np.ndarray:
+    """A student that flies a throttle well below the teacher's (action −0.5 of the
+    throttle channel) and a fixed attitude."""
+    return np.tile(np.array([[0.3, 0.0, -0.5]], dtype=np.float32), (len(obs), 1))
+
+
+@pytest.mark.parametrize("student", [_throttled_down, _dive])
+def test_a_law_teachers_engine_estimate_follows_the_throttle_flown(student):
+    """ZEM/ZEV with the IMU, flying along while a student flies other throttles, measures the
+    engine the student's throttles give: the same thrust scale as when it flies itself (the
+    nominal world's engine, 1). Told nothing, it divided the IMU's reading by its own throttle
+    and believed a 40 % engine under the throttled-down student."""
+    from agents.imitation.teachers import LawRolloutTeacher
+    from guidance.flight import fly
+    from guidance.registry import LawContext, build_law
+
+    kw = {"dt_s": 2.0, "sensors": ["imu"]}
+    law = build_law("zem-zev", LawContext(env_id=ENV_ID, env_kwargs=kw, scenario=SC))
+    scales = []
+
+    def learner(obs):
+        scales.append(law.estimator.scale[law.estimator.measured].copy())
+        return student(obs)
+
+    fly(ENV_ID, LawRolloutTeacher(law, learner, np.zeros(3)), 3, seed=3, env_kwargs=kw)
+    measured = np.concatenate(scales[1:8])
+    assert len(measured) >= 6
+    np.testing.assert_allclose(measured, 1.0, atol=0.02)
+
+
+class _SpyStudent:
+    """A deterministic 'model' of a history student: its action a fixed function of its input
+    row (the throttle channel at −0.5, below the teacher's)."""
+
+    def __init__(self, observation_space):
+        self.observation_space = observation_space
+        n = observation_space.shape[0]
+        self.w = np.random.default_rng(0).normal(size=(n, 2)).astype(np.float32) / np.sqrt(n)
+
+    def predict(self, obs, deterministic=True, **kwargs):
+        a = np.tanh(np.asarray(obs, dtype=np.float32) @ self.w)
+        return np.c_[a, np.full(len(a), -0.5, np.float32)], None
+
+
+@pytest.mark.parametrize("switch_s", [np.inf, 0.0, 20.0])
+def test_a_history_students_inputs_hold_the_actions_flown(switch_s):
+    """The labels' inputs of a student with a history (k = 2) are its stacked inputs, and their
+    newest action slot is the action flown at the decision before: the teacher's while the
+    teacher flies (to the end at switch inf), the student's own after the switch."""
+    from gymnasium import spaces
+
+    from agents.features.history import history_space
+    from agents.imitation.teachers import LawRolloutTeacher
+    from agents.laws import SB3Law
+    from guidance.flight import fly
+    from guidance.registry import LawContext, build_law
+
+    kw = {"dt_s": 2.0, "sensors": ["imu"]}
+    law = build_law("zem-zev", LawContext(env_id=ENV_ID, env_kwargs=kw, scenario=SC))
+    n_obs = 11
+    box = spaces.Box(-np.inf, np.inf, (n_obs,), np.float32)
+    act = spaces.Box(-1.0, 1.0, (3,), np.float32)
+    student = SB3Law(_SpyStudent(history_space(box, act, 2)), None, history=2)
+    flown, inputs = [], []
+    rollout = LawRolloutTeacher(law, student, np.full(2, switch_s))
+    act_fn = rollout.act
+
+    def spy(nav):
+        a = act_fn(nav)
+        flown.append(a.copy())
+        inputs.append(student.last_inputs.copy())
+        return a
+
+    rollout.act = spy
+    fly(ENV_ID, rollout, 2, seed=5, env_kwargs=kw)
+    inputs, flown = np.array(inputs), np.array(flown)
+    assert inputs.shape[2] == 2 * (n_obs + 3)
+    newest_obs = inputs[:, :, n_obs:2 * n_obs]
+    newest_action = inputs[:, :, -3:]
+    # decision t's newest action slot is the action flown at t - 1 (0 at the first)
+    np.testing.assert_array_equal(newest_action[0], 0.0)
+    np.testing.assert_allclose(newest_action[1:20], flown[:19], atol=1e-6)
+    # the older input slot is the newest one of the decision before
+    np.testing.assert_array_equal(inputs[1:20, :, :n_obs], newest_obs[:19])
+    labels = np.concatenate(rollout.records["obs"])
+    assert labels.shape[1] == 2 * (n_obs + 3)
+    throttle_low = np.isclose(flown[:20, :, 2], -0.5)
+    if switch_s == np.inf:
+        assert not throttle_low.any()  # the teacher flew throughout
+    elif switch_s == 0.0:
+        assert throttle_low.all()
+    else:
+        assert throttle_low[12:].all() and not throttle_low[:8].any()
+
+
+def test_dagger_with_a_history_from_the_cli(dataset_file, tmp_path):
+    """``history: 2``: the teacher flies the first iteration, the student (stacked inputs, its
+    standardisation from those flights) flies the second, the selection and the saved run
+    carry the history, and the run flies as a law; a history is refused, before a run
+    directory exists, for behaviour cloning and with a dataset share of the minibatches."""
+    import yaml
+
+    import agents.imitation.cli as im
+    from agents.features import StandardizedInputs
+    from agents.imitation.policy import imitation_history
+    from agents.laws import SB3Law
+    from guidance.flight import rollout
+
+    path = dataset_file
+    run = tmp_path / "dg"
+    assert im.main(["dagger", "--quick", "--env", ENV_ID, "--dataset", str(path),
+                    "--run-dir", str(run), "--seed", "0", "--no-progress", "--no-tensorboard",
+                    "--hyperparams", "history=2", "dagger.n_iterations=2",
+                    "dagger.teacher=zem-zev"]) == 0
+    hist = yaml.safe_load((run / "dagger_history.yml").read_text())
+    assert [h["iteration"] for h in hist] == [0, 1]
+    # iteration 0: the teacher throughout (its roll-outs are all mixed, none the policy's)
+    with np.load(run / "labels" / "iter_000.npz") as z:
+        n_in = z["obs"].shape[1]
+        assert float(z["rollout_policy_only_episodes"]) == 2.0  # over all: none learner-only
+    with np.load(run / "labels" / "iter_001.npz") as z:
+        assert z["obs"].shape[1] == n_in
+    law = SB3Law.from_path(run)
+    assert law.history == 2 and law.model.observation_space.shape == (n_in,)
+    ext = law.model.policy.features_extractor
+    assert isinstance(ext, StandardizedInputs) and float(ext.std.min()) > 0.0
+    assert not np.allclose(ext.mean.numpy(), 0.0)  # the teacher's flights' statistics
+    assert yaml.safe_load((run / "selection.yml").read_text())["n_states"] == 2
+    res = rollout(ENV_ID, law, 2, 7, {}, trace_cases=0)
+    assert len(res.is_success) == 2
+
+    hp = {"history": 2, "dagger": {"teacher": "zem-zev", "dagger_fraction": None}}
+    with pytest.raises(ValueError, match="behaviour cloning"):
+        imitation_history(hp, "bc")
+    with pytest.raises(ValueError, match="law teacher"):
+        imitation_history({"history": 2, "dagger": {"teacher": "navigated"}}, "dagger")
+    with pytest.raises(ValueError, match="dagger_fraction"):
+        imitation_history({"history": 2, "dagger": {"teacher": "zem-zev",
+                                                    "dagger_fraction": 0.5}}, "dagger")
+    with pytest.raises(ValueError, match="history=0"):
+        imitation_history({"history": 0, "dagger": {}}, "dagger")
+    assert imitation_history(hp, "dagger") == 2 and imitation_history({}, "bc") is None
+    with pytest.raises(SystemExit):
+        im.main(["bc", "--quick", "--env", ENV_ID, "--dataset", str(path), "--run-dir",
+                 str(tmp_path / "bc"), "--hyperparams", "history=2"])
+    assert not (tmp_path / "bc").exists()
