@@ -44,7 +44,7 @@ import time
 import numpy as np
 
 from guidance.law import FlightComputer, GuidanceLaw, Navigation
-from guidance.laws.engine_estimate import ThrustScaleEstimator
+from guidance.laws.engine_estimate import PlanEstimateFollowsFlight, ThrustScaleEstimator
 from guidance.registry import require_no_argument
 from optimizers.optimum import optimum_family, plant_scenario
 
@@ -55,7 +55,7 @@ SCALE_STEP = 0.005
 __all__ = ["ConvexReplanningLaw", "convex_from_spec"]
 
 
-class ConvexReplanningLaw(GuidanceLaw):
+class ConvexReplanningLaw(PlanEstimateFollowsFlight, GuidanceLaw):
     """SCvx re-planning from the navigated state (see the module docstring).
 
     Parameters
@@ -240,14 +240,6 @@ class ConvexReplanningLaw(GuidanceLaw):
             throttle = controls[:, -1] if self.computer.throttled else np.ones(nav.n)
             self.estimator.record(throttle, mass_kg, nav.active)
         return self.computer.actions_from_controls(controls)
-
-    def flown(self, nav: Navigation, actions: np.ndarray) -> None:
-        """Another policy flew ``actions`` (N, n_act) at the decision of ``nav`` (this law
-        is a DAgger teacher flying along): the thrust estimate records the throttle those
-        actions gave the engine, not the plan's."""
-        if self.estimator is not None and "imu" in nav.sensors:
-            self.estimator.record_flown(self.computer, actions,
-                                        nav.state_nd[:, -1] * self._mass_ref_kg, nav.active)
 
 
 def convex_from_spec(spec, context) -> GuidanceLaw:

@@ -20,7 +20,7 @@ import numpy as np
 
 from lunar_env.validation import require_finite_positive
 
-__all__ = ["ThrustScaleEstimator", "MIN_MEASURED_THROTTLE"]
+__all__ = ["ThrustScaleEstimator", "PlanEstimateFollowsFlight", "MIN_MEASURED_THROTTLE"]
 
 #: below this throttle the last decision's measurement is not used (the accelerometers' bias
 #: would dominate a nearly idle engine's acceleration)
@@ -99,3 +99,21 @@ class ThrustScaleEstimator:
         controls = computer.controls_from_actions(np.asarray(actions, dtype=np.float64))
         throttle = controls[:, -1] if computer.throttled else np.ones(len(controls))
         self.record(throttle, mass_kg, active)
+
+
+class PlanEstimateFollowsFlight:
+    """The ``flown`` of a re-planning law with an engine estimate (convex re-planning, the
+    touchdown re-planning law): ``estimator`` (a :class:`ThrustScaleEstimator`, or None
+    without an IMU), ``computer`` and ``_mass_ref_kg`` (the believed mass is the navigated
+    state's last component times it), set at ``reset``."""
+
+    estimator: ThrustScaleEstimator | None
+    _mass_ref_kg: float
+
+    def flown(self, nav, actions: np.ndarray) -> None:
+        """Another policy flew ``actions`` (N, n_act) at the decision of ``nav`` (this law
+        is a DAgger teacher flying along): the thrust estimate records the throttle those
+        actions gave the engine, not the plan's."""
+        if self.estimator is not None and "imu" in nav.sensors:
+            self.estimator.record_flown(self.computer, actions,
+                                        nav.state_nd[:, -1] * self._mass_ref_kg, nav.active)

@@ -21,7 +21,7 @@ import numpy as np
 
 from guidance.law import FlightComputer, GuidanceLaw, Navigation
 from guidance.laws.baselines import BaselineFamily
-from guidance.laws.engine_estimate import ThrustScaleEstimator
+from guidance.laws.engine_estimate import PlanEstimateFollowsFlight, ThrustScaleEstimator
 
 __all__ = ["TouchdownBaselines", "TouchdownOpenLoopLaw", "TouchdownReplanningLaw",
            "DEFAULT_REPLAN_S", "DEFAULT_MIN_TGO_S"]
@@ -112,7 +112,7 @@ class TouchdownOpenLoopLaw(GuidanceLaw):
         return self.computer.actions_from_controls(u)
 
 
-class TouchdownReplanningLaw(GuidanceLaw):
+class TouchdownReplanningLaw(PlanEstimateFollowsFlight, GuidanceLaw):
     """The certified optimum re-planned from the navigation solution: every ``every_s`` seconds
     each lander solves :func:`optimizers.optimum.touchdown.solve_touchdown_case` (collocation
     certified by Pontryagin shooting) from its navigated state with the nominal model, the
@@ -227,14 +227,6 @@ class TouchdownReplanningLaw(GuidanceLaw):
         if self.estimator is not None and "imu" in nav.sensors:
             self.estimator.record(u[:, 2], mass_kg, nav.active)
         return self.computer.actions_from_controls(u)
-
-    def flown(self, nav: Navigation, actions: np.ndarray) -> None:
-        """Another policy flew ``actions`` (N, n_act) at the decision of ``nav`` (this law
-        is a DAgger teacher flying along): the thrust estimate records the throttle those
-        actions gave the engine, not the plan's."""
-        if self.estimator is not None and "imu" in nav.sensors:
-            self.estimator.record_flown(self.computer, actions,
-                                        nav.state_nd[:, -1] * self._mass_ref_kg, nav.active)
 
 
 class TouchdownBaselines(BaselineFamily):
