@@ -4,7 +4,7 @@ choice of the final iteration (:func:`select_iteration`).
 
 from __future__ import annotations
 
-import os
+import io
 import re
 import time
 from pathlib import Path
@@ -25,6 +25,7 @@ from agents.imitation.policy import (
     policy_inputs,
 )
 from lunar_env import get_scenario
+from optimizers.common.checkpoint import atomic_write_bytes
 
 _DG_CKPT = re.compile(r"^dagger_iter_(\d+)\.zip$")
 
@@ -152,9 +153,9 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
                 store_dir=lbdir / f"iter_{it:03d}_parts", progress=not run.get("no_progress"),
                 history=history_k, teacher_throughout=teacher_first and it == 0)
             lab, roll = family.dagger_iteration(scenario, request)
-            tmp = lb_file.with_suffix(".tmp.npz")
-            np.savez_compressed(tmp, **lab, **{k: np.array(v) for k, v in roll.items()})
-            os.replace(tmp, lb_file)
+            buf = io.BytesIO()
+            np.savez_compressed(buf, **lab, **{k: np.array(v) for k, v in roll.items()})
+            atomic_write_bytes(lb_file, buf.getvalue())
         who = "teacher" if teacher_first and it == 0 else "policy"
         print(f"DAgger iteration {it}: {who} roll-outs success "
               f"{100 * roll['rollout_success_rate']:.1f} %, mean fuel "

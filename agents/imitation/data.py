@@ -3,14 +3,16 @@
 
 from __future__ import annotations
 
+import io
 import json
-import os
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from optimizers.common.checkpoint import atomic_write_bytes
 
 __all__ = ["FORMAT_VERSION", "ImitationDataset", "load_dataset", "save_dataset",
            "PER_TRAJECTORY_KEYS", "OPTIONAL_PER_TRAJECTORY_KEYS", "PER_SAMPLE_KEYS"]
@@ -87,14 +89,14 @@ class ImitationDataset:
 
 
 def save_dataset(path: str | Path, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> Path:
-    """Write a dataset file atomically (temporary file, then rename)."""
+    """Write a dataset file atomically (built in memory, then
+    :func:`~optimizers.common.checkpoint.atomic_write_bytes`)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     meta = dict(meta, format_version=FORMAT_VERSION)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.npz")
-    np.savez_compressed(tmp, meta=np.array(json.dumps(meta)), **arrays)
-    os.replace(tmp, path)
-    return path
+    buf = io.BytesIO()
+    np.savez_compressed(buf, meta=np.array(json.dumps(meta)), **arrays)
+    return atomic_write_bytes(path, buf.getvalue())
 
 
 def load_dataset(path: str | Path) -> ImitationDataset:

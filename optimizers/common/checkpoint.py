@@ -9,14 +9,15 @@ what the state belongs to (algorithm, its settings, the problem's fingerprint, t
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
-import tempfile
+import secrets
 from pathlib import Path
 from typing import Any
 
 __all__ = ["save_checkpoint", "load_checkpoint", "atomic_write_bytes", "save_figure_atomic",
-           "CheckpointMismatch"]
+           "temporary_sibling", "write_synced", "CheckpointMismatch"]
 
 _FORMAT = 1
 
@@ -25,23 +26,38 @@ class CheckpointMismatch(ValueError):
     """The checkpoint belongs to another run (problem, settings or seed)."""
 
 
+def temporary_sibling(path: str | os.PathLike) -> Path:
+    """A name for a temporary file beside ``path`` that no other writer uses (hidden, this
+    process's id and 64 random bits, ``.tmp``). The name exists before the file does, so an
+    interrupt at any moment after the file is created can still remove it by name."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(8)}.tmp")
+
+
+def write_synced(tmp: Path, data: bytes) -> None:
+    """Create ``tmp`` (which must not exist) holding ``data``, flushed to disk."""
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file in the same folder, fsync,
-    ``os.replace``)."""
+    ``os.replace``). An exception or interrupt (SIGINT, SIGTERM raised as an exception) at any
+    point leaves either the previous ``path`` or the new one, and no temporary file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    # the name is bound before the file exists: ``tempfile.mkstemp`` creates the file before
+    # returning its name, and a signal handled in between left an orphan behind
+    tmp = temporary_sibling(path)
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
+        write_synced(tmp, data)
         os.replace(tmp, path)
     except BaseException:
-        try:
+        with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
-        except FileNotFoundError:
-            pass
         raise
     return path
 

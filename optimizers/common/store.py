@@ -49,13 +49,13 @@ store itself never locks (readers need no lock).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import json
 import os
 import pickle
 import re
-import tempfile
 import zipfile
 import zlib
 from collections.abc import Callable, Mapping, Sequence
@@ -63,7 +63,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .checkpoint import atomic_write_bytes
+from .checkpoint import atomic_write_bytes, temporary_sibling, write_synced
 
 _SAFE = re.compile(r"[^A-Za-z0-9_.-]+")
 
@@ -397,18 +397,16 @@ class ResultStore:
         """Write ``identity.json`` atomically, never over an existing one (link, not
         replace: of two creators one wins and the other compares with it)."""
         data = json.dumps(self.identity, indent=1).encode()
-        fd, tmp = tempfile.mkstemp(prefix=".identity.json.", suffix=".tmp", dir=self.directory)
+        tmp = temporary_sibling(self.identity_file)
         try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
+            write_synced(tmp, data)
             try:
                 os.link(tmp, self.identity_file)
             except FileExistsError:
                 pass
         finally:
-            os.unlink(tmp)
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
 
     # -- files ----------------------------------------------------------------------------------
     @property

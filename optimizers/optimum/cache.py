@@ -5,14 +5,16 @@ solved it (so workers on several machines need a shared filesystem)."""
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ..common.checkpoint import atomic_write_bytes
 
 __all__ = ["cache_root", "cache_key", "load_optimum", "store_optimum", "cached_optima"]
 
@@ -44,16 +46,11 @@ def load_optimum(path: Path, cls):
 
 
 def store_optimum(path: Path, opt) -> None:
-    """Write ``opt.to_arrays()`` to ``path`` atomically (a temporary file renamed over it)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.npz", dir=path.parent)
-    os.close(fd)
-    try:
-        np.savez(tmp, **opt.to_arrays())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """Write ``opt.to_arrays()`` to ``path`` atomically (an ``.npz`` built in memory, then
+    :func:`~optimizers.common.checkpoint.atomic_write_bytes`)."""
+    buf = io.BytesIO()
+    np.savez(buf, **opt.to_arrays())
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def cached_optima(states: np.ndarray, paths: list[Path | None], cls,

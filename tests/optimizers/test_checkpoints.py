@@ -61,3 +61,42 @@ def test_damaged_optimiser_checkpoint_is_named(tmp_path):
         with pytest.raises(ValueError, match=f"checkpoint {ck} is damaged"):
             ASAGA(n_generations=2).solve(PlanarLandingProblem(), seed=5, checkpoint=ck)
         ck.write_bytes(data)
+
+
+def _interrupt_right_after_create(monkeypatch):
+    """``os.open`` creates the file, then a signal's exception arrives before it returns: the
+    moment a name known only after creation (``tempfile.mkstemp``) would leave an orphan."""
+    import os
+
+    real_open = os.open
+
+    def open_then_interrupt(*args, **kwargs):
+        fd = real_open(*args, **kwargs)
+        os.close(fd)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "open", open_then_interrupt)
+
+
+def test_an_interrupt_as_the_temporary_file_appears_leaves_no_file(tmp_path, monkeypatch):
+    from optimizers.common.checkpoint import atomic_write_bytes
+
+    target = tmp_path / "result.json"
+    target.write_bytes(b"old")
+    _interrupt_right_after_create(monkeypatch)
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write_bytes(target, b"new")
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["result.json"]
+    assert target.read_bytes() == b"old"
+
+
+def test_an_interrupt_as_a_stores_identity_is_written_leaves_no_file(tmp_path, monkeypatch):
+    from optimizers.common.store import ResultStore
+
+    _interrupt_right_after_create(monkeypatch)
+    with pytest.raises(KeyboardInterrupt):
+        ResultStore(tmp_path / "store", identity={"a": 1}, fmt="json")
+    monkeypatch.undo()
+    assert not [p for p in (tmp_path / "store").rglob("*") if p.is_file()]
+    ResultStore(tmp_path / "store", identity={"a": 1}, fmt="json")  # and it opens afterwards
