@@ -32,7 +32,7 @@ from ..uncertainty import EpisodeErrors, UncertaintyModel, resolve_uncertainty
 from ..validation import require_bool, require_finite_positive, require_integer
 from .core import landing_penalty
 
-__all__ = ["LandingTask", "StepSettings", "fall_steps", "float_array", "box"]
+__all__ = ["LandingTask", "StepSettings", "MIN_DT_S", "fall_steps", "float_array", "box"]
 
 #: the sensors an env can put in its observation (``sensors=(...)``)
 SENSORS = ("imu",)
@@ -60,6 +60,13 @@ def check_sensors(sensors) -> tuple[str, ...]:
 
 
 
+
+
+#: Shortest decision interval (s). A choice: a millisecond is faster than any lander's guidance
+#: cycle (Apollo's LGC ran its descent guidance every 2 s), a shorter interval only makes
+#: episodes of millions of steps, and a subnormal one (5e-324 s) divides the free fall's step
+#: count by zero.
+MIN_DT_S = 1e-3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,7 +115,7 @@ class StepSettings:
         no engine cut-off at a speed minimum (stored as 0). ``substeps`` must be an
         integer >= 1 (1.7 is refused, not truncated), ``throttle_channel`` a bool (the string
         ``"no"`` is refused, not read as True), the times, speeds and ``success_miss_m``
-        finite and > 0, and ``time_limit_s >= dt_s``.
+        finite and > 0, ``dt_s >= MIN_DT_S`` (:data:`MIN_DT_S`) and ``time_limit_s >= dt_s``.
 
         Raises
         ------
@@ -117,6 +124,9 @@ class StepSettings:
             value.
         """
         dt_s = require_finite_positive("dt_s", dt_s)
+        if dt_s < MIN_DT_S:
+            raise ValueError(f"dt_s = {dt_s!r} is not allowed; a decision interval must be "
+                             f">= {MIN_DT_S:g} s")
         success_speed_m_s = require_finite_positive("success_speed_m_s", success_speed_m_s)
         cutoff_speed_m_s = 0.0 if cutoff_speed_m_s is None else \
             require_finite_positive("cutoff_speed_m_s", cutoff_speed_m_s)

@@ -145,6 +145,8 @@ def test_pinpoint_scenario_every_dispersed_start_resets():
     ({"substeps": math.inf}, "substeps"),
     ({"substeps": math.nan}, "substeps"),
     ({"dt_s": "1"}, "dt_s"),
+    ({"dt_s": 5e-324}, "dt_s"),  # subnormal: divided the free fall's step count by zero
+    ({"dt_s": 9e-4}, "dt_s"),
     ({"success_speed_m_s": None}, "success_speed_m_s"),
 ])
 def test_env_arguments_are_refused_by_name(env_id, kwargs, field):
