@@ -194,19 +194,25 @@ def test_reference_profile_and_stop_point_features():
 
 
 
-def test_from_dagger_profile_loads_the_pinpoint_clone():
+@pytest.mark.parametrize("env_id, clone_config", [
+    ("LunarPinpointLanding-v2", "default"), ("LunarPinpointLanding-v3", "robust")])
+def test_from_dagger_profile_loads_the_pinpoint_clone(env_id, clone_config):
     """``train.py --config from_dagger --init-from <DAgger run>`` needs the clone's network,
-    inputs and decision interval, and observations left raw (the clone standardises them)."""
+    inputs and decision interval (v3: also its errors and IMU), and observations left raw (the
+    clone standardises them)."""
     from agents.hyperparams import default_hyperparams_path, load_hyperparams
 
-    env_id = "LunarPinpointLanding-v2"
     ppo = load_hyperparams(default_hyperparams_path("ppo"), env_id, "from_dagger")
-    clone = load_hyperparams(default_hyperparams_path("ppo").with_name("imitation.yml"), env_id)
+    clone = load_hyperparams(default_hyperparams_path("ppo").with_name("imitation.yml"), env_id,
+                             clone_config)
     assert ppo["obs_features"] == clone["obs_features"]
     assert ppo["policy_kwargs"]["net_arch"] == clone["policy_kwargs"]["net_arch"]
     assert ppo["policy_kwargs"]["activation_fn"] == clone["policy_kwargs"]["activation_fn"]
     assert ppo["normalize"]["norm_obs"] is False
-    assert ppo["env_kwargs"]["dt_s"] == 1.0 and ppo["curriculum"] is None
+    assert ppo["env_kwargs"]["dt_s"] == clone.get("env_kwargs", {}).get("dt_s", 1.0)
+    assert ppo["curriculum"] is None
+    if env_id.endswith("v3"):
+        assert ppo["env_kwargs"] == clone["env_kwargs"]
     assert 0 < ppo["critic_warmup_steps"] < ppo["n_timesteps"]
 
 

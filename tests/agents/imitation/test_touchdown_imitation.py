@@ -267,6 +267,21 @@ def test_dagger_with_a_history_from_the_cli(dataset_file, tmp_path):
     res = rollout(ENV_ID, law, 2, 7, {}, trace_cases=0)
     assert len(res.is_success) == 2
 
+    # the PPO fine-tune of the student: its history, its standardisation, raw observations
+    import agents.train as tr
+
+    student_env = yaml.safe_load((run / "config.yml").read_text()).get("env_kwargs") or {}
+    ft = tmp_path / "ft"
+    assert tr.main(["--env", ENV_ID, "--config", "from_dagger", "--init-from", str(run),
+                    "--run-dir", str(ft), "--seed", "0", "--no-eval", "--no-progress",
+                    "--no-tensorboard", "-n", "1024", "--hyperparams", "n_envs=2",
+                    "n_steps=256", "batch_size=256", "critic_warmup_steps=512",
+                    f"env_kwargs={student_env!r}"]) == 0
+    tuned = SB3Law.from_path(ft)
+    assert tuned.history == 2 and tuned.model.observation_space.shape == (n_in,)
+    assert isinstance(tuned.model.policy.features_extractor, StandardizedInputs)
+    assert tuned.vecnormalize is None or tuned.vecnormalize.norm_obs is False
+
     hp = {"history": 2, "dagger": {"teacher": "zem-zev", "dagger_fraction": None}}
     with pytest.raises(ValueError, match="behaviour cloning"):
         imitation_history(hp, "bc")
