@@ -304,6 +304,15 @@ def test_seed_race_stopped_by_sigterm_checkpoints_every_candidate_and_resumes(tm
     assert _steps_of(run_dir) == n
 
 
+def _sigterm_pending(pid: int) -> bool:
+    """SIGTERM is pending at process ``pid`` (``/proc/<pid>/status``: ShdPnd or SigPnd)."""
+    bit = 1 << (signal.SIGTERM - 1)
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith(("ShdPnd:", "SigPnd:")) and int(line.split()[1], 16) & bit:
+            return True
+    return False
+
+
 def _pool_workers(pid: int) -> list[int]:
     """The process-pool workers among ``pid``'s children (multiprocessing's spawn)."""
     out = []
@@ -342,8 +351,12 @@ def test_seed_race_stopped_after_one_candidate_finished_checkpoints_the_other(tm
             os.kill(w, signal.SIGSTOP)
         os.kill(workers[0], signal.SIGCONT)
         wait_for(lambda: any((c / "selection.yml").exists() for c in cands.values()), 300, proc)
-        os.kill(workers[1], signal.SIGCONT)
+        # the SIGTERM the race passes on must reach the held worker while it is still
+        # stopped: continued first, it finished its last ~7000 steps (2 s) on a busy machine
+        # before the race's handler ran, and there was nothing left to interrupt
         proc.send_signal(signal.SIGTERM)
+        wait_for(lambda: _sigterm_pending(workers[1]), 60, proc)
+        os.kill(workers[1], signal.SIGCONT)
         out = proc.communicate(timeout=120)[0].decode()
     finally:
         for w in workers:
