@@ -340,7 +340,7 @@ def _certify(ocp, shooting, direct: PhasedSolution, x0: np.ndarray, engine: dict
                          guess_final_mass_nd=direct.final_state[6],
                          guess_costate_tf=direct.costate_tf, initial_state=x0, **engine)
     if not ext.success and not ext.switching_ok:
-        # the collocation removes an arc it cannot resolve (below MIN_ARC_FLOOR_S there), yet
+        # the collocation removes an arc it finds at its duration floor (MIN_ARC_FLOOR_S), yet
         # the extremal may hold it for a fraction of a second (a first full-thrust arc of
         # 0.03–0.2 s on 2 % of `standard` cases): the minimum principle then fails at the
         # removed arc's end, and the full structure with that arc reinstated short converges
