@@ -352,8 +352,8 @@ def test_seed_race_stopped_after_one_candidate_finished_checkpoints_the_other(tm
         os.kill(workers[0], signal.SIGCONT)
         wait_for(lambda: any((c / "selection.yml").exists() for c in cands.values()), 300, proc)
         # the SIGTERM the race passes on must reach the held worker while it is still
-        # stopped: continued first, it finished its last ~7000 steps (2 s) on a busy machine
-        # before the race's handler ran, and there was nothing left to interrupt
+        # stopped: continued first, it can finish its last ~7000 steps (2 s) before the
+        # race's handler runs, and then there is nothing left to interrupt
         proc.send_signal(signal.SIGTERM)
         wait_for(lambda: _sigterm_pending(workers[1]), 60, proc)
         os.kill(workers[1], signal.SIGCONT)
