@@ -82,8 +82,9 @@ _CASE_KEYS = ("success", "touchdown_speed_m_s", "miss_distance_m", "fuel_kg", "t
 _REF_KEYS = ("thrust_scale", "isp_scale", "mass_error_kg", "omniscient_fuel_kg")
 #: the reference tasks' key in the campaign's store, versioned: a store made by an older
 #: reference recomputes it (v2: the pinpoint direct-method fallback; v3: the touchdown optimum
-#: certifies extremals holding an arc shorter than the collocation resolves)
-_REF_TASK = "reference_v3"
+#: certifies extremals holding an arc shorter than the collocation resolves; v4: its
+#: collocation resumes once from IPOPT's iteration limit)
+_REF_TASK = "reference_v4"
 #: fields of every stored flight chunk (per-case lists: ``case`` and :data:`_CASE_KEYS`)
 _FLIGHT_FIELDS = ("case", *_CASE_KEYS, "n_decisions", "policy_wall_s")
 #: fields of every stored reference chunk (per-case lists: all but ``wall_s``)
@@ -410,7 +411,7 @@ def campaign_tasks(config: CampaignConfig, law_keys: dict[str, tuple[str, dict]]
                    ) -> tuple[list[Task], dict[str, int]]:
     """The campaign's tasks and the number of cases each task set covers.
 
-    Keys: ``(reference_v3, seed, k)`` for chunk k of the reference, and
+    Keys: ``(reference_v4, seed, k)`` for chunk k of the reference, and
     ``(LAW_KEY@xSCALE/nCASES, seed, k)`` for chunk k of a law flown at an error scale on its
     first CASES cases (:attr:`CampaignConfig.cases` at scale 1, :attr:`CampaignConfig.curve_n`
     at the curve's other scales); ``LAW_KEY`` from :func:`check_laws`, ``SCALE`` by

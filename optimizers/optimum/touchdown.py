@@ -68,7 +68,7 @@ __all__ = ["TouchdownOptimum", "TouchdownOptimumFamily", "solve_touchdown_case",
 #: The largest relative propellant difference of the two methods for a certified case.
 AGREEMENT_REL = 1e-6
 #: bumped whenever the stored content or the solver pipeline changes (invalidates the cache)
-CACHE_FORMAT = 2
+CACHE_FORMAT = 3
 #: the settings of both methods (part of the cache key)
 SOLVER_SETTINGS = {"structure": [1.0, "min", 1.0], "n_nodes_last": 30, "n_nodes_other": 10,
                    "min_arc_s": MIN_ARC_S, "min_arc_floor_s": MIN_ARC_FLOOR_S,

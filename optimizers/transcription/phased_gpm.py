@@ -414,10 +414,11 @@ def solve_structure(solver: PhasedGaussPseudospectral, ocp, structure, *,
     kw = dict(initial_state=initial_state, thrust_nd=thrust_nd,
               exhaust_velocity_nd=exhaust_velocity_nd)
     structure = tuple(structure)
-    sol = solver.solve(ocp, structure, guess=guess, **kw)
+    sol = _solve_resumed(solver, ocp, structure, guess=guess, **kw)
     if not (sol.success and sol.at_min.any()):
         return sol
-    sol = solver.solve(ocp, structure, guess=sol.guess(), min_arc_s=MIN_ARC_FLOOR_S, **kw)
+    sol = _solve_resumed(solver, ocp, structure, guess=sol.guess(), min_arc_s=MIN_ARC_FLOOR_S,
+                         **kw)
     while sol.success and sol.at_min.any() and len(structure) > 1:
         keep = [i for i, drop in enumerate(sol.at_min) if not drop]
         merged: list[int] = []
@@ -435,7 +436,18 @@ def solve_structure(solver: PhasedGaussPseudospectral, ocp, structure, *,
         else:
             warm = None
         structure = reduced
-        sol = solver.solve(ocp, structure, guess=warm, min_arc_s=MIN_ARC_FLOOR_S, **kw)
+        sol = _solve_resumed(solver, ocp, structure, guess=warm, min_arc_s=MIN_ARC_FLOOR_S, **kw)
+    return sol
+
+
+def _solve_resumed(solver: PhasedGaussPseudospectral, ocp, structure, **kw) -> PhasedSolution:
+    """``solver.solve``, restarted once from its last iterate where IPOPT stopped at its
+    iteration limit. Such an iterate is a good start: on the `standard` cases whose
+    collocation stopped there (thrust −4.2 % and −2.6 %) the restart converged at once."""
+    sol = solver.solve(ocp, structure, **kw)
+    if (not sol.success and "Maximum_Iterations_Exceeded" in sol.message
+            and np.all(np.isfinite(sol.durations_nd))):
+        sol = solver.solve(ocp, structure, **{**kw, "guess": sol.guess()})
     return sol
 
 

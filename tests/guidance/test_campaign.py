@@ -379,13 +379,13 @@ def test_the_schema_refuses_a_chunk_under_another_chunks_key(reference_run):
     tasks, n_cases = _tasks(config)
     schema = campaign_schema(config, n_cases)
     store = ResultStore.existing(out / "store")
-    for problem in (_flight_problem(tasks), "reference_v3"):
+    for problem in (_flight_problem(tasks), "reference_v4"):
         k0, k1 = TaskKey(problem, config.seed, 0), TaskKey(problem, config.seed, 1)
         chunk0 = store.get(k0)
         schema(k0, chunk0)
         with pytest.raises(ValueError, match=r"field 'case' = \[0, 1\] is not \[2, 3\]"):
             schema(k1, chunk0)
-        short = {**chunk0, "omniscient_fuel_kg" if problem == "reference_v3" else "fuel_kg":
+        short = {**chunk0, "omniscient_fuel_kg" if problem == "reference_v4" else "fuel_kg":
                  chunk0["case"][:1]}
         with pytest.raises(ValueError, match="different lengths"):
             schema(k0, short)
@@ -412,8 +412,8 @@ def test_a_chunk_copied_over_another_is_flown_again(reference_run, tmp_path):
     store = ResultStore.existing(tmp_path / "store")
     flight = _flight_problem(tasks)
     store.put(TaskKey(flight, config.seed, 1), store.get(TaskKey(flight, config.seed, 0)))
-    ref0 = store.path(TaskKey("reference_v3", config.seed, 0))
-    shutil.copyfile(ref0, store.path(TaskKey("reference_v3", config.seed, 1)))
+    ref0 = store.path(TaskKey("reference_v4", config.seed, 0))
+    shutil.copyfile(ref0, store.path(TaskKey("reference_v4", config.seed, 1)))
     again = run_campaign(config, tmp_path, workers=0, progress=False, plots=False)
     assert len(list((tmp_path / "store" / "results").glob("*.damaged"))) == 2
     assert _comparable(again.summary) == _comparable(res.summary)
