@@ -4,7 +4,6 @@ choice of the final iteration (:func:`select_iteration`).
 
 from __future__ import annotations
 
-import io
 import re
 import time
 from pathlib import Path
@@ -25,7 +24,7 @@ from agents.imitation.policy import (
     policy_inputs,
 )
 from lunar_env import get_scenario
-from optimizers.common.checkpoint import atomic_write_bytes
+from optimizers.common.checkpoint import save_npz_atomic
 
 _DG_CKPT = re.compile(r"^dagger_iter_(\d+)\.zip$")
 
@@ -153,9 +152,8 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
                 store_dir=lbdir / f"iter_{it:03d}_parts", progress=not run.get("no_progress"),
                 history=history_k, teacher_throughout=teacher_first and it == 0)
             lab, roll = family.dagger_iteration(scenario, request)
-            buf = io.BytesIO()
-            np.savez_compressed(buf, **lab, **{k: np.array(v) for k, v in roll.items()})
-            atomic_write_bytes(lb_file, buf.getvalue())
+            save_npz_atomic(lb_file, {**lab, **{k: np.array(v) for k, v in roll.items()}},
+                            compressed=True)
         who = "teacher" if teacher_first and it == 0 else "policy"
         print(f"DAgger iteration {it}: {who} roll-outs success "
               f"{100 * roll['rollout_success_rate']:.1f} %, mean fuel "

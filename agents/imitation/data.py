@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import io
 import json
 import zipfile
 from dataclasses import dataclass
@@ -12,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from optimizers.common.checkpoint import atomic_write_bytes
+from optimizers.common.checkpoint import save_npz_atomic
 
 __all__ = ["FORMAT_VERSION", "ImitationDataset", "load_dataset", "save_dataset",
            "PER_TRAJECTORY_KEYS", "OPTIONAL_PER_TRAJECTORY_KEYS", "PER_SAMPLE_KEYS"]
@@ -89,14 +88,13 @@ class ImitationDataset:
 
 
 def save_dataset(path: str | Path, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> Path:
-    """Write a dataset file atomically (built in memory, then
-    :func:`~optimizers.common.checkpoint.atomic_write_bytes`)."""
+    """Write a dataset file atomically
+    (:func:`~optimizers.common.checkpoint.save_npz_atomic`, compressed)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     meta = dict(meta, format_version=FORMAT_VERSION)
-    buf = io.BytesIO()
-    np.savez_compressed(buf, meta=np.array(json.dumps(meta)), **arrays)
-    return atomic_write_bytes(path, buf.getvalue())
+    return save_npz_atomic(path, {"meta": np.array(json.dumps(meta)), **arrays},
+                           compressed=True)
 
 
 def load_dataset(path: str | Path) -> ImitationDataset:

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["save_checkpoint", "load_checkpoint", "atomic_write_bytes", "save_figure_atomic",
-           "temporary_sibling", "write_synced", "CheckpointMismatch"]
+           "save_npz_atomic", "temporary_sibling", "write_synced", "CheckpointMismatch"]
 
 _FORMAT = 1
 
@@ -71,6 +71,19 @@ def save_figure_atomic(fig, path: str | os.PathLike, **savefig_kwargs) -> Path:
     path = Path(path)
     buf = io.BytesIO()
     fig.savefig(buf, format=path.suffix.lstrip(".") or "png", **savefig_kwargs)
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+def save_npz_atomic(path: str | os.PathLike, arrays: dict[str, Any], *,
+                    compressed: bool = False) -> Path:
+    """``arrays`` as an ``.npz`` (``np.savez``, or ``np.savez_compressed``) written atomically
+    (built in memory, then :func:`atomic_write_bytes`)."""
+    import io
+
+    import numpy as np
+
+    buf = io.BytesIO()
+    (np.savez_compressed if compressed else np.savez)(buf, **arrays)
     return atomic_write_bytes(path, buf.getvalue())
 
 

@@ -5,7 +5,6 @@ solved it (so workers on several machines need a shared filesystem)."""
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import os
 from collections.abc import Callable
@@ -14,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..common.checkpoint import atomic_write_bytes
+from ..common.checkpoint import save_npz_atomic
 
 __all__ = ["cache_root", "cache_key", "load_optimum", "store_optimum", "cached_optima"]
 
@@ -46,11 +45,9 @@ def load_optimum(path: Path, cls):
 
 
 def store_optimum(path: Path, opt) -> None:
-    """Write ``opt.to_arrays()`` to ``path`` atomically (an ``.npz`` built in memory, then
-    :func:`~optimizers.common.checkpoint.atomic_write_bytes`)."""
-    buf = io.BytesIO()
-    np.savez(buf, **opt.to_arrays())
-    atomic_write_bytes(path, buf.getvalue())
+    """Write ``opt.to_arrays()`` to ``path`` atomically
+    (:func:`~optimizers.common.checkpoint.save_npz_atomic`)."""
+    save_npz_atomic(path, opt.to_arrays())
 
 
 def cached_optima(states: np.ndarray, paths: list[Path | None], cls,

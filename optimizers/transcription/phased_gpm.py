@@ -316,7 +316,8 @@ class PhasedGaussPseudospectral:
         Returns
         -------
         PhasedSolution
-            ``success`` False (never an exception) when IPOPT fails or the verdict fails.
+            ``success`` False (never an exception) when IPOPT fails or the verdict fails. IPOPT
+            stopped at its iteration limit is resumed once from its last iterate.
 
         Raises
         ------
@@ -344,6 +345,13 @@ class PhasedGaussPseudospectral:
         z0 = np.clip(z0, lbw, b["ubw"])
         sol = b["solver"](x0=z0, p=par, lbx=lbw, ubx=b["ubw"], lbg=b["lbg"], ubg=b["ubg"])
         st = b["solver"].stats()
+        last = np.asarray(sol["x"]).ravel()
+        if st["return_status"] == "Maximum_Iterations_Exceeded" and np.all(np.isfinite(last)):
+            # resumed once from the last iterate, a good start: on the `standard` cases whose
+            # collocation stopped there (thrust −4.2 % and −2.6 %) the restart converged at once
+            sol = b["solver"](x0=last, p=par, lbx=lbw, ubx=b["ubw"], lbg=b["lbg"],
+                              ubg=b["ubg"])
+            st = b["solver"].stats()
         z = np.asarray(sol["x"]).ravel()
         lam_g = np.asarray(sol["lam_g"]).ravel()
         lam_x = np.asarray(sol["lam_x"]).ravel()
@@ -414,11 +422,10 @@ def solve_structure(solver: PhasedGaussPseudospectral, ocp, structure, *,
     kw = dict(initial_state=initial_state, thrust_nd=thrust_nd,
               exhaust_velocity_nd=exhaust_velocity_nd)
     structure = tuple(structure)
-    sol = _solve_resumed(solver, ocp, structure, guess=guess, **kw)
+    sol = solver.solve(ocp, structure, guess=guess, **kw)
     if not (sol.success and sol.at_min.any()):
         return sol
-    sol = _solve_resumed(solver, ocp, structure, guess=sol.guess(), min_arc_s=MIN_ARC_FLOOR_S,
-                         **kw)
+    sol = solver.solve(ocp, structure, guess=sol.guess(), min_arc_s=MIN_ARC_FLOOR_S, **kw)
     while sol.success and sol.at_min.any() and len(structure) > 1:
         keep = [i for i, drop in enumerate(sol.at_min) if not drop]
         merged: list[int] = []
@@ -436,18 +443,7 @@ def solve_structure(solver: PhasedGaussPseudospectral, ocp, structure, *,
         else:
             warm = None
         structure = reduced
-        sol = _solve_resumed(solver, ocp, structure, guess=warm, min_arc_s=MIN_ARC_FLOOR_S, **kw)
-    return sol
-
-
-def _solve_resumed(solver: PhasedGaussPseudospectral, ocp, structure, **kw) -> PhasedSolution:
-    """``solver.solve``, restarted once from its last iterate where IPOPT stopped at its
-    iteration limit. Such an iterate is a good start: on the `standard` cases whose
-    collocation stopped there (thrust −4.2 % and −2.6 %) the restart converged at once."""
-    sol = solver.solve(ocp, structure, **kw)
-    if (not sol.success and "Maximum_Iterations_Exceeded" in sol.message
-            and np.all(np.isfinite(sol.durations_nd))):
-        sol = solver.solve(ocp, structure, **{**kw, "guess": sol.guess()})
+        sol = solver.solve(ocp, structure, guess=warm, min_arc_s=MIN_ARC_FLOOR_S, **kw)
     return sol
 
 
