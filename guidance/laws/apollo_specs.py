@@ -31,6 +31,14 @@ key             meaning                                                        d
 ``aim``         aim point (m) ∈ [0, 100] above the terminal surface            0
 ==============  =============================================================  =======
 
+``min_time_slack=M`` (``LunarPinpointLanding-v3``, m ∈ (0, 50000]; default off): a lander whose
+measured engine's minimum-time stop lies less than M short of the site (or beyond it) flies
+the minimum-time Pontryagin feedback to touchdown for the rest of its descent
+(:class:`~guidance.laws.min_time_touchdown.MinimumTimeHandover`; 5000 is the measured
+choice there)::
+
+    zem-zev:min_time_slack=5000
+
 Phases (``LunarPinpointLanding-v3``, where the episode ends at touchdown on the site; the
 defaults, their sources and reasons: :class:`~guidance.laws.apollo.DescentPhases`):
 
@@ -74,7 +82,7 @@ _PHASE_OPTIONS = {"high_gate": "high_gate_m", "hg_angle": "high_gate_angle_deg",
                   "rate_tau": "rate_tau_s",
                   "h_tau": "horizontal_tau_s", "tilt": "max_tilt_deg"}
 _OPTIONS = ("kr", "tgo_margin", "lead", "tgo", "rotation", "terminal", "aim", "phased",
-            *_PHASE_OPTIONS)
+            "min_time_slack", *_PHASE_OPTIONS)
 
 
 def _phases(spec):
@@ -97,11 +105,11 @@ def _no_argument(spec) -> None:
                          "options are KEY=VALUE")
 
 
-def _augmented(spec, default_k_r: float) -> GuidanceLaw:
+def _augmented(spec, default_k_r: float, context) -> GuidanceLaw:
     spec.require_known_options(_OPTIONS)
     _no_argument(spec)
     try:
-        return AugmentedApolloLaw(
+        law = AugmentedApolloLaw(
             k_r=spec.option("kr", float, default_k_r),
             tgo_margin=spec.option("tgo_margin", float, 0.0),
             lead_s=spec.option("lead", float, 0.0),
@@ -111,6 +119,18 @@ def _augmented(spec, default_k_r: float) -> GuidanceLaw:
             aim_above_m=spec.option("aim", float, 0.0),
             phases=_phases(spec),
             name=spec.text or spec.name)
+        slack = spec.option("min_time_slack", float, None)
+        if slack is not None:
+            from guidance.laws.min_time_touchdown import (
+                MinimumTimeHandover,
+                MinimumTimeTouchdownLaw,
+                check_slack,
+            )
+
+            slack = check_slack(slack)  # before the minimum-time law's first solve
+            law = MinimumTimeHandover(law, MinimumTimeTouchdownLaw(context.scenario), slack,
+                                      name=spec.text)
+        return law
     except ValueError as exc:
         msg = str(exc)  # the spec's own checks name the law already
         raise ValueError(msg if msg.startswith("law ") else
@@ -119,12 +139,12 @@ def _augmented(spec, default_k_r: float) -> GuidanceLaw:
 
 def apollo_from_spec(spec, context) -> GuidanceLaw:
     """``apollo[:kr=..,tgo_margin=..,lead=..,tgo=..,rotation=..]`` (k_r = 12 by default)."""
-    return _augmented(spec, K_R_APOLLO)
+    return _augmented(spec, K_R_APOLLO, context)
 
 
 def zem_zev_from_spec(spec, context) -> GuidanceLaw:
     """``zem-zev[:...]``: the augmented Apollo law with k_r = 6 by default (same options)."""
-    return _augmented(spec, K_R_ZEM_ZEV)
+    return _augmented(spec, K_R_ZEM_ZEV, context)
 
 
 def gravity_turn_from_spec(spec, context) -> GuidanceLaw:

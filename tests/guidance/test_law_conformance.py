@@ -29,6 +29,8 @@ SPECS = {
     "apollo": (PLANAR, PINPOINT, TOUCHDOWN),
     "zem-zev": (PLANAR, PINPOINT, TOUCHDOWN),
     "zem-zev:high_gate=0,low_gate=50": (TOUCHDOWN,),
+    "zem-zev:min_time_slack=50000": (TOUCHDOWN,),
+    "min-time": (TOUCHDOWN,),
     "gravity-turn": (PLANAR, PINPOINT, TOUCHDOWN),
     "open-loop": (PLANAR, TOUCHDOWN),
     "feedback": (PLANAR, PINPOINT, TOUCHDOWN),
