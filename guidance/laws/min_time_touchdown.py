@@ -145,6 +145,7 @@ class MinimumTimeTouchdownLaw(GuidanceLaw):
         self.switch_tgo_s = _check("switch_tgo_s", switch_tgo_s, 0.0, 30.0, " s")
         self.switch_m = _check("switch_m", switch_m, 0.0, 5000.0, " m")
         from guidance.laws.pontryagin_pinpoint import PinpointPontryaginExpert
+        from optimizers.indirect.pinpoint_feedback import PinpointFeedback
         from optimizers.optimum import plant_scenario
 
         t = scenario.target
@@ -152,6 +153,8 @@ class MinimumTimeTouchdownLaw(GuidanceLaw):
             scenario, name=f"{scenario.name}[stop {self.stop_above_m:g} m above]",
             target=dataclasses.replace(t, altitude_m=t.altitude_m + self.stop_above_m))
         self.scenario = scenario
+        # the natural stop is the site's (not the raised stop's)
+        self._site = PinpointFeedback(scenario)
         self.full = PinpointPontryaginExpert(raised)
         guess = self.full.feedback.nominal_costates()
         self.planned, self.low = (
@@ -237,20 +240,8 @@ class MinimumTimeTouchdownLaw(GuidanceLaw):
         with the stop point free along the track, for an engine ``thrust_scale`` times the
         nominal: metres along the track beyond the site (< 0: short of it); +inf where no
         such extremal converges (a lander that cannot stop on the track)."""
-        from optimizers.indirect.pinpoint_feedback import (
-            feedback_constants,
-            solve_extremal,
-        )
-        from optimizers.optimum import plant_scenario
-
-        x = np.asarray(state_nd, dtype=np.float64)
-        fb = self.full.feedback
-        consts = feedback_constants(plant_scenario(self.scenario, float(thrust_scale), 1.0))
-        for guess in [fb.nominal_costates()] + fb._crude_guesses(x):
-            sol = solve_extremal(consts, x, guess, free_along=True, max_iter=60)
-            if sol.converged and sol.tgo_s > 0:
-                return float(sol.beyond_m)
-        return math.inf
+        sol = self._site.natural_stop(state_nd, float(thrust_scale))
+        return math.inf if sol is None else float(sol.beyond_m)
 
 
 class MinimumTimeHandover(GuidanceLaw):

@@ -555,6 +555,26 @@ class PinpointFeedback:
                 step *= 0.3
         return cur
 
+    def natural_stop(self, state_nd: np.ndarray, thrust_scale: float = 1.0
+                     ) -> ExtremalSolution | None:
+        """The natural stop from ``state_nd`` (7,): the minimum-time extremal to rest anywhere
+        on the track's great circle through the target (its ``beyond_m``: where, in metres
+        beyond the target, < 0 short of it), for an engine ``thrust_scale`` (> 0) times the
+        scenario's (same Isp). Cold-started from the nominal extremal's costates, then the
+        crude guesses; None where none converges (a lander that cannot stop on the track)."""
+        x = np.asarray(state_nd, dtype=np.float64)
+        if x.shape != (7,) or not np.all(np.isfinite(x)):
+            raise ValueError(f"state_nd {x.shape} must be one finite normalised pinpoint "
+                             "state (7,)")
+        scale = require_finite_positive("thrust_scale", thrust_scale)
+        k = self._k_scenario if scale == 1.0 else _thrust_scaled(self._k_scenario, scale)
+        for guess in [self.nominal_costates()] + self._crude_guesses(x):
+            self.n_solves += 1
+            sol = solve_extremal(k, x, guess, free_along=True, step_s=self.step_s, max_iter=60)
+            if sol.converged and sol.tgo_s > 0:
+                return sol
+        return None
+
     # -- the law -----------------------------------------------------------------------------
     def __call__(self, states_nd, t_s, dt_s: float, active=None,
                  thrust_scale=None) -> np.ndarray:

@@ -211,3 +211,18 @@ def test_a_guess_whose_newton_iterate_divides_by_zero_is_not_converged():
              0.5274987843259835, 0.26175773337813163, 0.13570308187103153]
     sol = solve_extremal(k, np.array(x0), np.array(guess))
     assert not sol.converged and sol.residual == float("inf")
+
+
+def test_the_natural_stop_comes_no_later_than_the_target_and_is_refused_bad_input(feedback):
+    # minimum time over a free stop point is at most the minimum time to the target itself
+    x0 = SC.state_nd(scaling=SC.scaling())
+    free = feedback.natural_stop(x0)
+    to_target = pf.solve_extremal(feedback.k, x0, feedback.nominal_costates())
+    assert free is not None and free.converged and to_target.converged
+    assert free.tgo_s <= to_target.tgo_s + 1e-6
+    # a weaker engine brakes less per second: its natural stop lies further along the track
+    assert feedback.natural_stop(x0, 0.95).beyond_m > free.beyond_m
+    with pytest.raises(ValueError, match="thrust_scale"):
+        feedback.natural_stop(x0, 0.0)
+    with pytest.raises(ValueError, match="state_nd"):
+        feedback.natural_stop(np.full(7, np.nan))
