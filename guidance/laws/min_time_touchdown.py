@@ -6,8 +6,8 @@ Why a second braking law on the touchdown task
 Where the engine is weak enough, the fuel optimum of a landing on the site is a single
 full-thrust arc (measured: each of ZEM/ZEV's 18 failures among 1000 development cases under
 ``standard`` has a certified optimum that is one full-thrust arc of 575–623 s, six of them
-after 1.0–1.3 s at the minimum throttle), so the
-minimum-fuel and the minimum-time landings coincide and no thrust is left to spare: the
+after 1.0–1.3 s at the minimum throttle), so the minimum-fuel and the minimum-time landings
+coincide and no thrust is left to spare: the
 lander must fly close to the minimum-time steering, which lofts (climbs to 20–30 km before
 the final dive). The explicit laws' linear- or quadratic-in-time profiles through Apollo's
 gates are not that path, and with the engine already at full thrust they cannot make up
@@ -17,8 +17,9 @@ lies only a few kilometres short of the site, or beyond it (nominal engines: 20�
 
 :class:`MinimumTimeTouchdownLaw`
     At every decision the minimum-time extremal from the navigated state to rest
-    ``stop_above_m`` above the site (:class:`~guidance.laws.pontryagin_pinpoint.
-    PinpointPontryaginExpert`: compiled Pontryagin shooting, warm-started), planned for the
+    ``stop_above_m`` above the site
+    (:class:`~guidance.laws.pontryagin_pinpoint.PinpointPontryaginExpert`: compiled
+    Pontryagin shooting, warm-started), planned for the
     engine the IMU measures times ``1 − reserve`` and flown at throttle ``1 − reserve``. An
     extremal that stops more than ``switch_m`` beyond the site (or none) hands the decision to
     the measured engine's full-thrust extremal at full throttle; one that stops more than
@@ -26,8 +27,9 @@ lies only a few kilometres short of the site, or beyond it (nominal engines: 20�
     :class:`~guidance.laws.pontryagin_pinpoint.PinpointReserveExpert`, with the reserve
     relative to the measured engine rather than the nominal one: a reserve of the nominal
     thrust is more than a 5 % weak engine has). Within ``switch_tgo_s`` of the stop, or below
-    ``stop_above_m``, Apollo's terminal descent (P66, :meth:`~guidance.laws.apollo.
-    DescentPhases.terminal_thrust`) takes over to touchdown.
+    ``stop_above_m``, Apollo's terminal descent
+    (P66, :meth:`~guidance.laws.apollo.DescentPhases.terminal_thrust`) takes over to
+    touchdown.
 
 :class:`MinimumTimeHandover`
     An explicit law (``zem-zev:min_time_slack=M``) whose landers are handed to
