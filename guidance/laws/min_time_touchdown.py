@@ -56,7 +56,7 @@ import math
 import numpy as np
 
 from guidance.law import FlightComputer, GuidanceLaw, Navigation, ThrustCommand, actions_of
-from guidance.laws.apollo import DescentPhases
+from guidance.laws.apollo import DescentPhases, _check_range
 from guidance.laws.engine_estimate import ThrustScaleEstimator
 
 __all__ = ["MinimumTimeTouchdownLaw", "MinimumTimeHandover", "DEFAULT_RESERVE",
@@ -75,22 +75,14 @@ DEFAULT_SWITCH_M = 50.0
 DEFAULT_MIN_TIME_SLACK_M = 5000.0
 
 
-def _check(name: str, value, lo: float, hi: float, unit: str) -> float:
-    """``value`` as a float in [lo, hi]; ``ValueError`` naming it otherwise (NaN included)."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        v = math.nan
-    if isinstance(value, bool) or not (math.isfinite(v) and lo <= v <= hi):
-        raise ValueError(f"{name} = {value!r} is not allowed; it must be a number in "
-                         f"[{lo:g}, {hi:g}]{unit}")
-    return v
-
-
 def check_slack(slack_m) -> float:
     """The handover's ``min_time_slack`` (m) as a float in (0, 50000]; ``ValueError`` naming
     it otherwise."""
-    return _check("min_time_slack", slack_m, 1e-9, 50000.0, " m")
+    v = _check_range("min_time_slack", slack_m, 0.0, 50000.0)
+    if v == 0.0:
+        raise ValueError(f"min_time_slack = {slack_m!r} is not allowed; it must be in "
+                         "(0, 50000] m")
+    return v
 
 
 class MinimumTimeTouchdownLaw(GuidanceLaw):
@@ -109,7 +101,7 @@ class MinimumTimeTouchdownLaw(GuidanceLaw):
     scenario : TouchdownScenario
         The nominal scenario (``LunarPinpointLanding-v3``'s).
     reserve : float
-        Fraction of the measured engine kept in reserve, in [0, 0.1]; default
+        Fraction of the measured engine kept in reserve, in (0, 0.1]; default
         :data:`DEFAULT_RESERVE`.
     stop_above_m : float
         Height above the site (m) at which the extremals stop, in [5, 200]; default
@@ -142,32 +134,26 @@ class MinimumTimeTouchdownLaw(GuidanceLaw):
             raise ValueError(f"the minimum-time touchdown law flies a landing on a site; "
                              f"scenario {scenario.name!r} does not end at touchdown on its "
                              "target (use LunarPinpointLanding-v3)")
-        self.reserve = _check("reserve", reserve, 0.0, 0.1, "")
-        self.stop_above_m = _check("stop_above_m", stop_above_m, 5.0, 200.0, " m")
-        self.switch_tgo_s = _check("switch_tgo_s", switch_tgo_s, 0.0, 30.0, " s")
-        self.switch_m = _check("switch_m", switch_m, 0.0, 5000.0, " m")
-        from guidance.laws.pontryagin_pinpoint import PinpointPontryaginExpert
+        self.reserve = _check_range("reserve", reserve, 0.0, 0.1)
+        self.stop_above_m = _check_range("stop_above_m", stop_above_m, 5.0, 200.0)
+        self.switch_tgo_s = _check_range("switch_tgo_s", switch_tgo_s, 0.0, 30.0)
+        self.switch_m = _check_range("switch_m", switch_m, 0.0, 5000.0)
+        from guidance.laws.pontryagin_pinpoint import PinpointReserveExpert
         from optimizers.indirect.pinpoint_feedback import PinpointFeedback
-        from optimizers.optimum import plant_scenario
 
-        t = scenario.target
-        raised = dataclasses.replace(
-            scenario, name=f"{scenario.name}[stop {self.stop_above_m:g} m above]",
-            target=dataclasses.replace(t, altitude_m=t.altitude_m + self.stop_above_m))
         self.scenario = scenario
         # the natural stop is the site's (not the raised stop's)
         self._site = PinpointFeedback(scenario)
-        self.full = PinpointPontryaginExpert(raised)
-        guess = self.full.feedback.nominal_costates()
-        self.planned, self.low = (
-            PinpointPontryaginExpert(plant_scenario(raised, level, 1.0), nominal_guess=guess)
-            for level in (1.0 - self.reserve, 1.0 - 2.0 * self.reserve))
+        # its three extremals (reserve, full, 1 − 2R engines, stopping above the site) and
+        # the choice between them; the engine scale is this law's (planned on the measured
+        # engine), so the expert keeps no estimate of its own
+        self.expert = PinpointReserveExpert(scenario, self.reserve, switch_m=self.switch_m,
+                                               stop_above_m=self.stop_above_m)
         self.descent = DescentPhases()
 
     def reset(self, computer: FlightComputer, case_ids: np.ndarray) -> None:
         super().reset(computer, case_ids)
-        for expert in (self.planned, self.full, self.low):
-            expert.reset(computer, case_ids)
+        self.expert.reset(computer, case_ids)
         n = len(case_ids)
         self.estimator = (ThrustScaleEstimator(computer.thrust_n)
                           if "imu" in computer.sensors else None)
@@ -191,25 +177,13 @@ class MinimumTimeTouchdownLaw(GuidanceLaw):
         """Actions (N, 3): each active lander's extremal over this step, or terminal
         descent."""
         start = np.flatnonzero(nav.episode_start)
-        for expert in (self.planned, self.full, self.low):
-            expert.feedback.reset(start)
+        self.expert.start_episodes(start)
         self.terminal[start] = False
         scale = self.engine_scale(nav)
         alive = np.asarray(nav.active, dtype=bool)
         braking = alive & ~self.terminal
-        throttle = np.full(nav.n, 1.0 - self.reserve)
-        angles = self.planned.labels(nav.state_nd, nav.t_s, braking, scale)[0]
-        tgo = np.array(self.planned.feedback.last_tgo_s, dtype=np.float64)
-        beyond = np.asarray(self.planned.feedback.last_beyond_m, dtype=np.float64)
-        short = braking & (beyond < -self.switch_m)
-        long = braking & ~short & ~(beyond <= self.switch_m)  # NaN (no extremal): long
-        for rows, expert, level in ((long, self.full, 1.0),
-                                    (short, self.low, 1.0 - 2.0 * self.reserve)):
-            if rows.any():
-                ang = expert.labels(nav.state_nd, nav.t_s, rows, scale)[0]
-                angles[rows] = ang[rows]
-                throttle[rows] = level
-                tgo[rows] = np.asarray(expert.feedback.last_tgo_s)[rows]
+        angles, _, throttle, tgo, _, long, short = self.expert.extremals(
+            nav.state_nd, nav.t_s, braking, plan_scale=scale, full_scale=scale)
         f = nav.frame
         self.terminal |= braking & ((f.height_m <= self.stop_above_m)
                                     | (np.nan_to_num(tgo, nan=np.inf) <= self.switch_tgo_s))

@@ -221,7 +221,7 @@ class PinpointReserveExpert(GuidanceLaw):
             self._plans: list[np.ndarray | None] = [None] * n
             self._margin_m = np.full(n, -np.inf)
 
-    def _start_episodes(self, rows: np.ndarray) -> None:
+    def start_episodes(self, rows: np.ndarray) -> None:
         """Rows ``rows`` start new episodes: forget their extremals, estimates and windows."""
         for expert in (self.planned, self.full, self.low):
             expert.feedback.reset(rows)
@@ -233,7 +233,7 @@ class PinpointReserveExpert(GuidanceLaw):
                 self._margin_m[i] = -np.inf
 
     def act(self, nav: Navigation) -> np.ndarray:
-        self._start_episodes(np.flatnonzero(nav.episode_start))
+        self.start_episodes(np.flatnonzero(nav.episode_start))
         active = np.asarray(nav.active, dtype=bool)
         mass_kg = nav.state_nd[:, 6] * self._mass_ref_kg
         if self.estimator is not None:
@@ -241,31 +241,15 @@ class PinpointReserveExpert(GuidanceLaw):
         everyone = active
         if self.window is not None:
             active = active & ~self.in_window  # landers in their window fly it
-        angles, actions, _ = self.planned.labels(nav.state_nd, nav.t_s, active)
-        status = np.array(self.planned.last_status, dtype=object)
-        tgo = np.array(self.planned.feedback.last_tgo_s, dtype=float)
-        # states are normalised by length, mu and the initial mass: the derated engines'
-        # plans read the same normalised states as the nominal one's
-        beyond = self.planned.feedback.last_beyond_m
-        short = active & (beyond < -self.switch_m)
-        long = active & ~short & ~(beyond <= self.switch_m)  # NaN (no extremal): long
-        off = short | long
-        throttle = np.full(len(active), 1.0 - self.thrust_reserve)
         # the full engine is what full throttle gives: a weak engine's estimate (below 1) is
         # all it has, so its extremal is planned with that thrust (a stronger one is throttled
         # back to the nominal); planned at the nominal thrust, a lander 2.4 % weak believed
         # itself short by 960 m, stretched its range and landed 1.5 km long (measured)
         full_scale = (None if self.estimator is None
                       else np.minimum(np.asarray(self.estimator.scale, dtype=float), 1.0))
-        for rows, expert, level, plan_scale in (
-                (long, self.full, 1.0, full_scale),
-                (short, self.low, 1.0 - 2.0 * self.thrust_reserve, None)):
-            if rows.any():
-                ang, act, _ = expert.labels(nav.state_nd, nav.t_s, rows, plan_scale)
-                angles[rows], actions[rows] = ang[rows], act[rows]
-                status[rows] = np.array(expert.last_status, dtype=object)[rows]
-                throttle[rows] = level
-                tgo[rows] = np.asarray(expert.feedback.last_tgo_s)[rows]
+        angles, actions, throttle, tgo, status, long, short = self.extremals(
+            nav.state_nd, nav.t_s, active, full_scale=full_scale)
+        off = short | long
         if self.estimator is not None:
             throttle = np.clip(throttle / self.estimator.scale, 0.0, 1.0)
         windowed = np.zeros(len(active), dtype=bool)
@@ -285,6 +269,38 @@ class PinpointReserveExpert(GuidanceLaw):
         self._commanded = np.concatenate([actions, (2.0 * throttle - 1.0)[:, None]],
                                          axis=1).astype(np.float32)
         return self._commanded.copy()
+
+    def extremals(self, state_nd: np.ndarray, t_s: np.ndarray, active: np.ndarray,
+                  plan_scale=None, full_scale=None):
+        """The engine chosen for each lander and its extremal (class docstring): the reserve
+        engine's extremal, or, where it stops more than ``switch_m`` long (or there is none),
+        the full engine's, or, more than ``switch_m`` short, the ``1 − 2R`` engine's.
+        ``plan_scale`` multiplies the reserve and ``1 − 2R`` engines, ``full_scale`` the full
+        one (each (N,) or None: 1; see :meth:`PinpointPontryaginExpert.labels`).
+
+        Returns ``(angles, actions, throttle, tgo_s, status, long, short)``: (N, 2) angles and
+        actions, (N,) throttles (fractions of the planned engines: 1 − R, 1 or 1 − 2R), times
+        to go (s), statuses (object array) and the two switched masks.
+        """
+        angles, actions, _ = self.planned.labels(state_nd, t_s, active, plan_scale)
+        status = np.array(self.planned.last_status, dtype=object)
+        tgo = np.array(self.planned.feedback.last_tgo_s, dtype=float)
+        # states are normalised by length, mu and the initial mass: the derated engines'
+        # plans read the same normalised states as the nominal one's
+        beyond = self.planned.feedback.last_beyond_m
+        short = active & (beyond < -self.switch_m)
+        long = active & ~short & ~(beyond <= self.switch_m)  # NaN (no extremal): long
+        throttle = np.full(len(active), 1.0 - self.thrust_reserve)
+        for rows, expert, level, scale in (
+                (long, self.full, 1.0, full_scale),
+                (short, self.low, 1.0 - 2.0 * self.thrust_reserve, plan_scale)):
+            if rows.any():
+                ang, act, _ = expert.labels(state_nd, t_s, rows, scale)
+                angles[rows], actions[rows] = ang[rows], act[rows]
+                status[rows] = np.array(expert.last_status, dtype=object)[rows]
+                throttle[rows] = level
+                tgo[rows] = np.asarray(expert.feedback.last_tgo_s)[rows]
+        return angles, actions, throttle, tgo, status, long, short
 
     def flown(self, nav: Navigation, actions: np.ndarray) -> None:
         """As a teacher (:class:`agents.imitation.teachers.Teacher`) while another policy flies:
