@@ -153,20 +153,41 @@ class SB3Law(GuidanceLaw):
                 "config.yml)")
 
 
-def law_from_spec(spec, context) -> SB3Law:
-    """Factory of the law specs ``NAME:RUN``, NAME one of ``ppo``, ``sac``, ``td3``,
-    ``recurrent-ppo``, ``bc``, ``dagger`` (the package's ``lunar_env.laws`` entry points;
-    :mod:`guidance.registry`): the run directory or model ``.zip`` ``RUN`` (memory and inputs
-    as the run was trained: :meth:`SB3Law.from_path`), labelled ``NAME:run-name``. No
-    options."""
-    spec.require_known_options(())
+def law_from_spec(spec, context) -> GuidanceLaw:
+    """Factory of the law specs ``NAME:RUN[:min_time_slack=M]``, NAME one of ``ppo``, ``sac``,
+    ``td3``, ``recurrent-ppo``, ``bc``, ``dagger`` (the package's ``lunar_env.laws`` entry
+    points; :mod:`guidance.registry`): the run directory or model ``.zip`` ``RUN`` (memory and
+    inputs as the run was trained: :meth:`SB3Law.from_path`), labelled ``NAME:run-name``.
+
+    ``min_time_slack=M`` (``LunarPinpointLanding-v3``, m ∈ (0, 50000]): landers whose natural
+    stop lies less than ``M`` short of the site at the first measured decision fly the
+    minimum-time law instead, as the explicit laws' option of that name does
+    (:class:`~guidance.laws.min_time_touchdown.MinimumTimeHandover`)."""
+    spec.require_known_options(("min_time_slack",))
     if not spec.argument:
         raise ValueError(f"law {spec.text!r} needs a run: {spec.name}:RUN (a run directory or "
                          "a model .zip)")
+    slack = spec.option("min_time_slack", float, None)
+    if slack is not None:
+        from guidance.laws.min_time_touchdown import check_slack
+
+        try:
+            slack = check_slack(slack)  # before the run is loaded
+        except ValueError as exc:
+            raise ValueError(f"law {spec.text!r}: {exc}") from None
     path = Path(spec.argument)
     if not path.exists():
         raise ValueError(f"law {spec.text!r}: run {spec.argument!r} does not exist")
-    return SB3Law.from_path(path, name=spec.label())
+    if slack is None:
+        return SB3Law.from_path(path, name=spec.label())
+    from guidance.laws.min_time_touchdown import MinimumTimeHandover, MinimumTimeTouchdownLaw
+
+    try:
+        min_time = MinimumTimeTouchdownLaw(context.scenario)
+    except ValueError as exc:
+        raise ValueError(f"law {spec.text!r}: {exc}") from None
+    return MinimumTimeHandover(SB3Law.from_path(path, name=spec.label()), min_time, slack,
+                               name=spec.label())
 
 
 def run_env_kwargs(spec) -> dict | None:

@@ -221,16 +221,19 @@ class MinimumTimeTouchdownLaw(GuidanceLaw):
 
 
 class MinimumTimeHandover(GuidanceLaw):
-    """An explicit law whose thrust-limited landers fly :class:`MinimumTimeTouchdownLaw`
-    (module docstring): at the first decision a lander's engine has been measured (the first
+    """A law whose thrust-limited landers fly :class:`MinimumTimeTouchdownLaw` (module
+    docstring): at the first decision a lander's engine has been measured (the first
     decision without an IMU), it is handed over for the rest of its descent if its natural
     stop (:meth:`MinimumTimeTouchdownLaw.natural_stop_m`, the measured engine, the navigated
     state) lies less than ``slack_m`` short of the site.
 
     Parameters
     ----------
-    law : AugmentedApolloLaw
-        The explicit law flown otherwise.
+    law : GuidanceLaw
+        The law flown otherwise: an explicit law (``zem-zev:min_time_slack=M``), whose own
+        engine estimate (its ``estimator``) measures the engine, or one without an estimate
+        (a learned law: ``dagger:RUN:min_time_slack=M``), whose engine the minimum-time law's
+        estimate measures.
     min_time : MinimumTimeTouchdownLaw
     slack_m : float
         In (0, 50000] m; default :data:`DEFAULT_MIN_TIME_SLACK_M`.
@@ -263,17 +266,21 @@ class MinimumTimeHandover(GuidanceLaw):
         self.handed_over[start] = False
         self.natural_stop_m[start] = np.nan
         out = actions_of(self.computer, self.law.act(nav)).astype(np.float64)
+        # the minimum-time law's engine estimate reads every lander at every decision, so a
+        # lander handed over is flown on its measured engine from its first decision (the
+        # reading is repeated for the landers it flies, with the same result)
+        self.min_time.engine_scale(nav)
+        # the law's own estimate classifies where it keeps one (the explicit laws' landers
+        # are classified on the engine they fly), the minimum-time law's otherwise
         est = getattr(self.law, "estimator", None)
+        if est is None:
+            est = self.min_time.estimator
         measured = np.ones(nav.n, dtype=bool) if est is None else est.measured
         scale = np.ones(nav.n) if est is None else est.scale
         new = np.asarray(nav.active, dtype=bool) & np.isnan(self.natural_stop_m) & measured
         for i in np.flatnonzero(new):
             self.natural_stop_m[i] = self.min_time.natural_stop_m(nav.state_nd[i], scale[i])
             self.handed_over[i] = self.natural_stop_m[i] > -self.slack_m
-        # the minimum-time law's engine estimate reads every lander at every decision, so a
-        # lander handed over is flown on its measured engine from its first decision (the
-        # reading is repeated for the landers it flies, with the same result)
-        self.min_time.engine_scale(nav)
         rows = np.asarray(nav.active, dtype=bool) & self.handed_over
         if rows.any():
             out[rows] = self.min_time.act(dataclasses.replace(nav, active=rows))[rows]
