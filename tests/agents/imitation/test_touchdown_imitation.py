@@ -297,3 +297,66 @@ def test_dagger_with_a_history_from_the_cli(dataset_file, tmp_path):
         im.main(["bc", "--quick", "--env", ENV_ID, "--dataset", str(path), "--run-dir",
                  str(tmp_path / "bc"), "--hyperparams", "history=2"])
     assert not (tmp_path / "bc").exists()
+
+
+@pytest.mark.parametrize("slack_m, handed", [(1.0, False), (50000.0, True)])
+def test_landers_handed_over_are_flown_by_the_minimum_time_law_and_not_labelled(slack_m,
+                                                                               handed):
+    """A student inside the minimum-time handover: a lander it keeps is labelled at every
+    decision; one handed over (a slack wider than any lander's) is labelled only before its
+    engine was measured, and the minimum-time law lands it."""
+    from gymnasium import spaces
+
+    from agents.imitation.teachers import LawRolloutTeacher
+    from agents.laws import SB3Law
+    from guidance.flight import fly
+    from guidance.laws.min_time_touchdown import MinimumTimeHandover, MinimumTimeTouchdownLaw
+    from guidance.registry import LawContext, build_law
+
+    kw = {"dt_s": 2.0, "sensors": ["imu"]}
+    law = build_law("zem-zev", LawContext(env_id=ENV_ID, env_kwargs=kw, scenario=SC))
+    student = SB3Law(_SpyStudent(spaces.Box(-np.inf, np.inf, (11,), np.float32)), None)
+    learner = MinimumTimeHandover(student, MinimumTimeTouchdownLaw(SC), slack_m)
+    rollout = LawRolloutTeacher(law, learner, np.zeros(1))
+    out = fly(ENV_ID, rollout, 1, seed=0, env_kwargs=kw)
+    n_labels = len(np.concatenate(rollout.records["obs"]))
+    assert bool(learner.handed_over[0]) == handed
+    if handed:
+        assert 1 <= n_labels <= 2 and out.is_success[0]
+    else:  # the student's own throttle (−0.5) flies it down
+        assert n_labels > 20 and not out.is_success[0]
+        assert np.concatenate(rollout.records["obs"]).shape[1] == 11  # the observations
+
+
+def test_dagger_with_the_minimum_time_handover_from_the_cli(dataset_file, tmp_path):
+    """``dagger.min_time_slack``: the run trains and selects with the handover and records
+    it; a bad slack or a built-in teacher is refused before a run directory exists, and an env
+    that does not land on its site by name."""
+    import gymnasium as gym
+    import yaml
+
+    import agents.imitation.cli as im
+    from agents.imitation.dagger import dagger_min_time_slack
+
+    base = ["dagger", "--quick", "--env", ENV_ID, "--dataset", str(dataset_file), "--seed", "0",
+            "--no-progress", "--no-tensorboard", "--hyperparams", "dagger.n_iterations=1",
+            "dagger.teacher=zem-zev"]
+    run = tmp_path / "dg"
+    assert im.main([*base, "dagger.min_time_slack=5000", "--run-dir", str(run)]) == 0
+    assert yaml.safe_load((run / "config.yml").read_text())["dagger"]["min_time_slack"] == 5000
+    assert yaml.safe_load((run / "selection.yml").read_text())["n_states"] == 2
+    with np.load(run / "labels" / "iter_000.npz") as z:
+        assert len(z["obs"]) > 0
+    for bad in ("0", "60000"):
+        with pytest.raises(SystemExit):
+            im.main([*base, f"dagger.min_time_slack={bad}", "--run-dir",
+                     str(tmp_path / f"bad{bad}")])
+        assert not (tmp_path / f"bad{bad}").exists()
+    with pytest.raises(ValueError, match="dagger.min_time_slack = 0"):
+        dagger_min_time_slack({"teacher": "zem-zev", "min_time_slack": 0}, SC)
+    with pytest.raises(ValueError, match="needs a law teacher"):
+        dagger_min_time_slack({"teacher": "navigated", "min_time_slack": 5000}, SC)
+    v2 = gym.make("LunarPinpointLanding-v2").unwrapped.scenario
+    with pytest.raises(ValueError, match="LunarPinpointLanding-v3"):
+        dagger_min_time_slack({"teacher": "zem-zev", "min_time_slack": 5000}, v2)
+    assert dagger_min_time_slack({"teacher": "zem-zev"}, SC) is None
