@@ -160,10 +160,7 @@ class LawRolloutTeacher(GuidanceLaw):
         m = np.asarray(nav.active, dtype=bool) & ~np.isin(status, _GUESSES)
         if isinstance(self.learner, MinimumTimeHandover):  # the student and its handover
             pol = actions_of(self.learner.computer, self.learner.act(nav))
-            student = self.learner.law
-            # the labels' inputs as without the handover: the stacked ones of a student with
-            # a history, the observations otherwise (features are appended in training)
-            inputs = nav.obs if student.history is None else student.last_inputs
+            inputs = self.learner.law.last_inputs
             m &= ~self.learner.handed_over
         elif isinstance(self.learner, GuidanceLaw):  # a student with memory
             pol = actions_of(self.learner.computer, self.learner.act(nav))
