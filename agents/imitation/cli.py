@@ -208,9 +208,6 @@ def main(argv: list[str] | None = None) -> int:
 
                 IMITATION_FAMILIES.of(get_scenario(dataset.meta["scenario"])).check_teacher(
                     parse_teacher(hp["dagger"].get("teacher")))
-                from agents.imitation.dagger import dagger_min_time_slack
-
-                dagger_min_time_slack(hp["dagger"], get_scenario(dataset.meta["scenario"]))
             from agents.imitation.policy import imitation_history
 
             imitation_history(hp, args.mode)  # a history the run cannot take, refused here

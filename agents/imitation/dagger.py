@@ -46,19 +46,12 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     on those flights, its inputs standardised with their statistics, instead of cloning the
     dataset, whose samples have no histories. The dataset still names the env's configuration.
 
-    With ``hp["dagger"]["min_time_slack"] = M`` (m; ``LunarPinpointLanding-v3``, law teachers)
-    the student flies its roll-outs, and the selection, with the minimum-time handover
-    (:class:`~guidance.laws.min_time_touchdown.MinimumTimeHandover`): the thrust-limited
-    landers are flown by the minimum-time law and not labelled, so the student learns the
-    landers it will fly. Fly the result as ``dagger:RUN:min_time_slack=M``.
-
     Raises
     ------
     ValueError
         The teacher setting names no teacher, or one the dataset's env family does not offer;
         a ``history`` the run cannot take (:func:`~agents.imitation.policy.
-        imitation_history`); a ``min_time_slack`` outside (0, 50000] m, with a built-in
-        teacher, or on an env that does not land on its site.
+        imitation_history`).
     """
     import torch as th
     from stable_baselines3 import PPO
@@ -72,7 +65,6 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     ds, env_kwargs = load_run_dataset(run, hp.get("env_kwargs"))
     # the family's own refusal (a teacher it cannot label with), before any training
     IMITATION_FAMILIES.of(get_scenario(ds.meta["scenario"])).check_teacher(teacher)
-    slack = dagger_min_time_slack(dg, get_scenario(ds.meta["scenario"]))
     seed = int(run["seed"])
     th.manual_seed(seed)
     ckdir = run_dir / "checkpoints"
@@ -158,8 +150,7 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
                 n_episodes=int(dg["n_episodes"]), seed=ep_seed, settings=dict(dg),
                 n_workers=int(dg.get("n_label_workers", 1)),
                 store_dir=lbdir / f"iter_{it:03d}_parts", progress=not run.get("no_progress"),
-                history=history_k, teacher_throughout=teacher_first and it == 0,
-                min_time_slack=slack)
+                history=history_k, teacher_throughout=teacher_first and it == 0)
             lab, roll = family.dagger_iteration(scenario, request)
             save_npz_atomic(lb_file, {**lab, **{k: np.array(v) for k, v in roll.items()}},
                             compressed=True)
@@ -229,43 +220,15 @@ def train_dagger(hp: dict[str, Any], run: dict[str, Any], run_dir: Path, resume:
     if n_select > 0:
         model = select_iteration(run_dir, run["env"], env_kwargs, hp.get("obs_features"),
                                  n_select, int(dg.get("select_seed", 50000)), run["device"],
-                                 history_k, min_time_slack=slack)
+                                 history_k)
     path = _save_final(model, run_dir)
     print(f"DAgger done ({dg['n_iterations']} iterations). Model: {path}")
     return model
 
 
-def dagger_min_time_slack(dg: dict[str, Any], scenario) -> float | None:
-    """The ``min_time_slack`` setting of a ``dagger`` section ``dg`` checked, for the
-    dataset's ``scenario`` (None: no handover); ``ValueError`` naming it where it cannot be
-    flown (outside (0, 50000] m, a built-in teacher, a scenario that does not end on its
-    site)."""
-    value = dg.get("min_time_slack")
-    if value is None:
-        return None
-    from agents.imitation.teachers import parse_teacher
-    from guidance.families import guidance_family
-    from guidance.laws.min_time_touchdown import check_slack
-
-    teacher = parse_teacher(dg.get("teacher"))
-    try:
-        slack = check_slack(value)
-    except ValueError as exc:
-        raise ValueError(f"dagger.{exc}") from None
-    if not teacher.is_law:
-        raise ValueError(f"dagger.min_time_slack = {value!r} needs a law teacher (a law spec, "
-                         f"e.g. 'zem-zev'), not {teacher.kind!r}")
-    if not getattr(guidance_family(scenario), "lands_on_site", False):
-        raise ValueError(f"dagger.min_time_slack = {value!r}: the minimum-time handover flies "
-                         f"a landing on a site; scenario {scenario.name!r} does not end at "
-                         "touchdown on its target (use LunarPinpointLanding-v3)")
-    return slack
-
-
 def select_iteration(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | None,
                      obs_features: list[str] | None, n_states: int, seed: int,
-                     device: str = "cpu", history: int | None = None,
-                     min_time_slack: float | None = None):
+                     device: str = "cpu", history: int | None = None):
     """The DAgger iteration whose policy lands most often on held-out validation states.
 
     Ross et al. (2011) guarantee the *best* of the iterates, not the last: the policy of one
@@ -273,8 +236,7 @@ def select_iteration(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | No
     iteration 6, 99.0 % after 7, on the evaluation's 200 states). Each checkpoint flies cases
     ``seed .. seed + n_states - 1`` (default seed 50000: disjoint from the dataset's, the
     roll-outs' and the evaluation's cases; :mod:`agents.rl.selection`); ties go to the later
-    iteration. ``history``: the run's (the policies' inputs). ``min_time_slack``: each
-    policy flies with the minimum-time handover, as it trained. The scores are written to
+    iteration. ``history``: the run's (the policies' inputs). The scores are written to
     ``selection.yml``; returns the chosen model.
     """
     from stable_baselines3 import PPO
@@ -285,20 +247,9 @@ def select_iteration(run_dir: Path, env_id: str, env_kwargs: dict[str, Any] | No
     done = sorted((int(m.group(1)), f) for f in ckdir.iterdir() if (m := _DG_CKPT.match(f.name)))
     if not done:
         raise FileNotFoundError(f"no DAgger checkpoint in {ckdir}")
-    wrap = None
-    if min_time_slack is not None:
-        from agents.imitation.flights import make_env
-        from guidance.laws.min_time_touchdown import MinimumTimeHandover, MinimumTimeTouchdownLaw
-
-        env = make_env(env_id, env_kwargs)
-        scenario = env.scenario
-        env.close()
-
-        def wrap(law):
-            return MinimumTimeHandover(law, MinimumTimeTouchdownLaw(scenario), min_time_slack)
     scores = score_candidates(done, env_id, env_kwargs,
                               obs_features, n_states, seed, device, label="DAgger iteration",
-                              history=history, wrap=wrap)
+                              history=history)
     best = best_of(scores)
     write_selection(run_dir, seed, n_states, "iteration", scores, best)
     print(f"DAgger selection: iteration {best['key']} ({100 * best['success_rate']:.1f} %)")

@@ -79,8 +79,7 @@ def policy_inputs(env_id: str, env_kwargs: dict[str, Any] | None,
 
 
 def load_learner(policy_file: str | Path, env_id: str, env_kwargs: dict[str, Any] | None,
-                 obs_features: list[str] | None, history: int | None = None,
-                 as_law: bool = False):
+                 obs_features: list[str] | None, history: int | None = None):
     """The saved policy as a DAgger student. Module level: the families' DAgger tasks receive
     it (:class:`agents.imitation.families.DaggerRequest`).
 
@@ -92,12 +91,9 @@ def load_learner(policy_file: str | Path, env_id: str, env_kwargs: dict[str, Any
     and tells the actions flown (:meth:`~agents.laws.SB3Law.flown`: the teacher's where it
     flies), so that its stacked inputs (``last_inputs``, the labels' inputs) are those it
     would build flying alone.
-
-    ``as_law``: a guidance law without a history too (its ``last_inputs`` the observation and
-    features), for a student flown inside another law (the minimum-time handover).
     """
     model = load_policy_model(policy_file)
-    if history is not None or as_law:
+    if history is not None:
         from agents.laws import SB3Law
 
         return SB3Law(model, None, name="DAgger student", obs_features=obs_features,

@@ -28,7 +28,6 @@ import numpy as np
 from agents.imitation.families import FollowsFlight
 from guidance.flight import fly
 from guidance.law import GuidanceLaw, Navigation, PrivilegedLaw, actions_of
-from guidance.laws.min_time_touchdown import MinimumTimeHandover
 from optimizers.indirect.pinpoint_feedback import STATUS_FALLBACK, STATUS_STALE
 
 __all__ = ["TEACHER_KINDS", "Teacher", "parse_teacher", "LawRolloutTeacher", "switch_times",
@@ -127,10 +126,7 @@ class LawRolloutTeacher(GuidanceLaw):
         The policy being trained: ``learner(obs (N, n_obs)) -> actions (N, n_act)``, whose
         labels' inputs are the observations; or, for a student with memory, a guidance law
         with ``last_inputs`` (the inputs it decided on, the labels' inputs) and ``flown`` (told
-        the actions flown, the teacher's where it flies), reset with the teacher; or such a
-        law inside a :class:`~guidance.laws.min_time_touchdown.MinimumTimeHandover`, whose
-        handed-over landers the minimum-time law flies and the teacher does not label (the
-        student is never asked to fly them).
+        the actions flown, the teacher's where it flies), reset with the teacher.
     switch_s : ndarray, shape (N,)
         Per-case episode time (s) at which the learner takes over (0: the learner throughout;
         inf: the teacher throughout).
@@ -158,11 +154,7 @@ class LawRolloutTeacher(GuidanceLaw):
         status = np.asarray(getattr(self.teacher, "last_status", None) or ["law"] * nav.n,
                             dtype="<U12")
         m = np.asarray(nav.active, dtype=bool) & ~np.isin(status, _GUESSES)
-        if isinstance(self.learner, MinimumTimeHandover):  # the student and its handover
-            pol = actions_of(self.learner.computer, self.learner.act(nav))
-            inputs = self.learner.law.last_inputs
-            m &= ~self.learner.handed_over
-        elif isinstance(self.learner, GuidanceLaw):  # a student with memory
+        if isinstance(self.learner, GuidanceLaw):  # a student with memory
             pol = actions_of(self.learner.computer, self.learner.act(nav))
             inputs = self.learner.last_inputs
         else:
@@ -185,29 +177,20 @@ def law_dagger_chunk(job: dict[str, Any]) -> dict[str, Any]:
     """Executor task: one chunk of DAgger roll-outs labelled by the law ``job["teacher"]``
     (a law spec) flying along (:class:`LawRolloutTeacher`). ``job`` holds ``model``,
     ``load_learner``, ``env_id``, ``env_kwargs``, ``obs_features``, ``seed``, ``n_episodes``,
-    ``switch_s``, ``teacher``, ``history`` (the student's, or None) and ``min_time_slack``
-    (the student's handover, m, or None)."""
+    ``switch_s``, ``teacher`` and ``history`` (the student's, or None)."""
     import torch as th
 
-    from guidance.laws.min_time_touchdown import MinimumTimeTouchdownLaw
     from guidance.registry import LawContext, build_law
     from lunar_env import get_scenario
 
     th.set_num_threads(1)
     memory = {} if job.get("history") is None else {"history": int(job["history"])}
-    slack = job.get("min_time_slack")
-    if slack is not None:  # the handover wraps a law: the student as one, memory or not
-        memory["as_law"] = True
     learner = job["load_learner"](job["model"], job["env_id"], job["env_kwargs"],
                                   job["obs_features"], **memory)
-    scenario = get_scenario(job["scenario"])
-    if slack is not None:
-        learner = MinimumTimeHandover(learner, MinimumTimeTouchdownLaw(scenario), float(slack),
-                                      name="DAgger student + minimum time")
     switch = np.asarray(job["switch_s"], dtype=np.float64)
     law = build_law(job["teacher"], LawContext(env_id=job["env_id"],
                                                env_kwargs=dict(job["env_kwargs"]),
-                                               scenario=scenario))
+                                               scenario=get_scenario(job["scenario"])))
     return fly_dagger_rollouts(job, LawRolloutTeacher(law, learner, switch), switch)
 
 
@@ -230,7 +213,6 @@ def law_dagger_rollouts(chunk_fn, model_path, load_learner, env_id: str,
                         obs_features: list[str] | None, beta: float, teacher: Teacher,
                         n_workers: int = 1, cache_dir=None, progress: bool = True,
                         history: int | None = None, teacher_throughout: bool = False,
-                        min_time_slack: float | None = None,
                         ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     """One DAgger iteration's roll-outs flown in chunks by ``chunk_fn`` (a module-level
     executor task: :func:`law_dagger_chunk` for a law teacher, a family's own for its built-in
@@ -239,8 +221,7 @@ def law_dagger_rollouts(chunk_fn, model_path, load_learner, env_id: str,
     ``teacher_throughout``: the teacher flies every episode to its end (Ross et al. 2011's
     first iteration, β₁ = 1), the policy only asked. ``history``: the student's (k decisions,
     loaded by ``load_learner(..., history=k)``); the labels' inputs are then its stacked
-    inputs, features included. ``min_time_slack`` (m): the student flies with the minimum-time
-    handover (:class:`LawRolloutTeacher`); the landers handed over are not labelled.
+    inputs, features included.
 
     Returns the labels (``obs``, ``actions``, ``status`` and whatever else the chunks record)
     and the roll-outs' figures: the success rate and mean fuel of the policy-only episodes
@@ -266,8 +247,7 @@ def law_dagger_rollouts(chunk_fn, model_path, load_learner, env_id: str,
     jobs = [{"model": str(model_path), "load_learner": load_learner, "env_id": env_id,
              "env_kwargs": dict(env_kwargs or {}), "obs_features": obs_features,
              "scenario": scenario, "seed": int(seed) + int(lo), "n_episodes": int(hi - lo),
-             "switch_s": switch[lo:hi].tolist(), "teacher": str(teacher), "history": history,
-             "min_time_slack": None if min_time_slack is None else float(min_time_slack)}
+             "switch_s": switch[lo:hi].tolist(), "teacher": str(teacher), "history": history}
             for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
     # each chunk's result is stored as it arrives and read back on resume
     store = None if cache_dir is None else ResultStore(
@@ -276,9 +256,7 @@ def law_dagger_rollouts(chunk_fn, model_path, load_learner, env_id: str,
                              "teacher": str(teacher),
                              # only where set: the chunks of runs without them keep their key
                              **({"history": int(history)} if history is not None else {}),
-                             **({"teacher_throughout": True} if teacher_throughout else {}),
-                             **({"min_time_slack": float(min_time_slack)}
-                                if min_time_slack is not None else {})},
+                             **({"teacher_throughout": True} if teacher_throughout else {})},
         fmt="pickle")
     tasks = [Task(TaskKey(f"dagger-{env_id}", int(seed), k), chunk_fn, (job,))
              for k, job in enumerate(jobs)]

@@ -13,17 +13,13 @@ candidate. Deterministic actions, as in the evaluation.
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import yaml
 
 from agents.common.runs import write_text_atomic
-
-if TYPE_CHECKING:
-    from guidance.law import GuidanceLaw
 
 __all__ = ["score_candidates", "select_checkpoint", "write_selection"]
 
@@ -34,15 +30,13 @@ VALIDATION_SEED = 50000
 def score_candidates(candidates: list[tuple[int, Path]], env_id: str,
                      env_kwargs: dict[str, Any] | None, obs_features: list[str] | None,
                      n_states: int, seed: int = VALIDATION_SEED, device: str = "cpu",
-                     label: str = "checkpoint", history: int | None = None,
-                     wrap: Callable[[GuidanceLaw], GuidanceLaw] | None = None
+                     label: str = "checkpoint", history: int | None = None
                      ) -> list[dict[str, Any]]:
     """Landings of each candidate ``(key, model .zip)`` on the validation cases; one dict per
     candidate (``key``, ``model``, ``vecnormalize``: the statistics file found for it by
     :func:`agents.common.runs.load_trained` or None, ``success_rate``, ``fuel_mean_kg`` of its
     landings), in the candidates' order. ``obs_features`` and ``history`` are the run's (the
-    policies' inputs). ``wrap``: the law each candidate flies inside (its ``wrap(law)``: e.g.
-    the minimum-time handover of a student trained with it). Prints one line per candidate."""
+    policies' inputs). Prints one line per candidate."""
     from agents.common.runs import load_trained
     from agents.laws import SB3Law
     from guidance.flight import rollout
@@ -52,10 +46,9 @@ def score_candidates(candidates: list[tuple[int, Path]], env_id: str,
     scores = []
     for key, model_path in candidates:
         model, vn_path, _ = load_trained(model_path, device=device)
-        law = SB3Law(model, vn_path, name=f"{label} {key}", obs_features=obs_features,
-                     history=history)
-        res = rollout(env_id, law if wrap is None else wrap(law), int(n_states), int(seed),
-                      env_kwargs, trace_cases=0)
+        res = rollout(env_id, SB3Law(model, vn_path, name=f"{label} {key}",
+                                     obs_features=obs_features, history=history),
+                      int(n_states), int(seed), env_kwargs, trace_cases=0)
         ok = res.is_success
         scores.append({"key": int(key), "model": Path(model_path), "vecnormalize": vn_path,
                        "success_rate": float(ok.mean()),

@@ -113,11 +113,6 @@ class DaggerRequest:
         inputs. Law teachers only (:mod:`agents.imitation.teachers`).
     teacher_throughout : bool
         The teacher flies every roll-out to its end (DAgger's first iteration, β₁ = 1).
-    min_time_slack : float or None
-        The student flies with the minimum-time handover
-        (:class:`~guidance.laws.min_time_touchdown.MinimumTimeHandover`, slack in m): the
-        landers it hands over are flown by the minimum-time law and not labelled. Law teachers
-        only.
     """
 
     env_id: str
@@ -133,13 +128,11 @@ class DaggerRequest:
     progress: bool = True
     history: int | None = None
     teacher_throughout: bool = False
-    min_time_slack: float | None = None
 
-    def student_kwargs(self) -> dict[str, Any]:
-        """How the student flies (``history``, ``teacher_throughout``, ``min_time_slack``) as
-        keyword arguments of :func:`agents.imitation.teachers.law_dagger_rollouts`."""
-        return {"history": self.history, "teacher_throughout": bool(self.teacher_throughout),
-                "min_time_slack": self.min_time_slack}
+    def memory_kwargs(self) -> dict[str, Any]:
+        """``history`` and ``teacher_throughout`` as keyword arguments of
+        :func:`agents.imitation.teachers.law_dagger_rollouts`."""
+        return {"history": self.history, "teacher_throughout": bool(self.teacher_throughout)}
 
 
 class ImitationFamily(ABC):

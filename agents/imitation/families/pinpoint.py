@@ -310,8 +310,7 @@ def pinpoint_dagger_rollouts(model_path, load_learner, env_id: str,
                              obs_features: list[str] | None, beta: float, n_workers: int = 1,
                              cache_dir=None, progress: bool = True,
                              teacher: str | None = None, history: int | None = None,
-                             teacher_throughout: bool = False,
-                             min_time_slack: float | None = None
+                             teacher_throughout: bool = False
                              ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     """One DAgger iteration's data on a pinpoint env: roll-outs of the policy saved at
     ``model_path`` (loaded in each task by the module-level ``load_learner``, see
@@ -326,9 +325,8 @@ def pinpoint_dagger_rollouts(model_path, load_learner, env_id: str,
     teacher up to a switch time drawn uniformly in [0, 540] s and by the policy after it,
     otherwise by the policy throughout (:func:`agents.imitation.teachers.switch_times`).
     Labels whose solve did not converge (status "stale"/"fallback") are not returned.
-    ``history``, ``teacher_throughout`` and ``min_time_slack``: a student with memory, the
-    teacher flying every episode and the minimum-time handover
-    (:func:`agents.imitation.teachers.law_dagger_rollouts`; law teachers only).
+    ``history`` and ``teacher_throughout``: a student with memory and the teacher flying
+    every episode (:func:`agents.imitation.teachers.law_dagger_rollouts`; law teachers only).
 
     Raises
     ------
@@ -337,18 +335,15 @@ def pinpoint_dagger_rollouts(model_path, load_learner, env_id: str,
         ``history`` with a built-in teacher (before anything is flown).
     """
     choice = parse_teacher(teacher)
-    if not choice.is_law and (history is not None or teacher_throughout
-                              or min_time_slack is not None):
+    if not choice.is_law and (history is not None or teacher_throughout):
         raise ValueError(f"dagger teacher = {choice.kind!r}: a student with a history "
-                         f"(history={history!r}) or the minimum-time handover "
-                         f"(min_time_slack={min_time_slack!r}) learns from a law teacher only "
-                         "(a law spec, e.g. 'zem-zev')")
+                         f"(history={history!r}) learns from a law teacher only (a law spec, "
+                         "e.g. 'zem-zev')")
     return law_dagger_rollouts(law_dagger_chunk if choice.is_law else expert_dagger_chunk,
                                model_path, load_learner, env_id, env_kwargs, n_episodes, seed,
                                obs_features, beta, choice, n_workers=n_workers,
                                cache_dir=cache_dir, progress=progress, history=history,
-                               teacher_throughout=teacher_throughout,
-                               min_time_slack=min_time_slack)
+                               teacher_throughout=teacher_throughout)
 
 
 def pinpoint_dagger_iteration(scenario, request: DaggerRequest
@@ -362,7 +357,7 @@ def pinpoint_dagger_iteration(scenario, request: DaggerRequest
         int(request.n_episodes), int(request.seed), request.obs_features,
         float(request.settings.get("beta", 0.5)), int(request.n_workers),
         cache_dir=request.store_dir, progress=request.progress,
-        teacher=request.settings.get("teacher"), **request.student_kwargs())
+        teacher=request.settings.get("teacher"), **request.memory_kwargs())
     roll["rollout_wall_s"] = time.perf_counter() - t0
     roll["label_wall_s"] = 0.0
     return lab, roll

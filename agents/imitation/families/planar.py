@@ -423,7 +423,7 @@ def planar_dagger_iteration(scenario, request: DaggerRequest
             request.env_kwargs, int(request.n_episodes), int(request.seed),
             request.obs_features, float(dg.get("beta", 0.0)), choice,
             n_workers=int(request.n_workers), cache_dir=request.store_dir,
-            progress=request.progress, **request.student_kwargs())
+            progress=request.progress, **request.memory_kwargs())
         roll.update(rollout_wall_s=time.perf_counter() - t0, label_wall_s=0.0)
         return lab, roll
     teacher = choice.kind

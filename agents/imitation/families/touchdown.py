@@ -173,7 +173,7 @@ def touchdown_dagger_iteration(scenario, request: DaggerRequest
         law_dagger_chunk, request.policy_file, request.load_learner, request.env_id,
         request.env_kwargs, int(request.n_episodes), int(request.seed), request.obs_features,
         float(request.settings.get("beta", 0.5)), choice, n_workers=int(request.n_workers),
-        cache_dir=request.store_dir, progress=request.progress, **request.student_kwargs())
+        cache_dir=request.store_dir, progress=request.progress, **request.memory_kwargs())
     roll["rollout_wall_s"] = time.perf_counter() - t0
     roll["label_wall_s"] = 0.0
     return lab, roll
