@@ -163,31 +163,17 @@ def law_from_spec(spec, context) -> GuidanceLaw:
     stop lies less than ``M`` short of the site at the first measured decision fly the
     minimum-time law instead, as the explicit laws' option of that name does
     (:class:`~guidance.laws.min_time_touchdown.MinimumTimeHandover`)."""
+    from guidance.laws.min_time_touchdown import spec_slack, with_handover
+
     spec.require_known_options(("min_time_slack",))
     if not spec.argument:
         raise ValueError(f"law {spec.text!r} needs a run: {spec.name}:RUN (a run directory or "
                          "a model .zip)")
-    slack = spec.option("min_time_slack", float, None)
-    if slack is not None:
-        from guidance.laws.min_time_touchdown import check_slack
-
-        try:
-            slack = check_slack(slack)  # before the run is loaded
-        except ValueError as exc:
-            raise ValueError(f"law {spec.text!r}: {exc}") from None
+    slack = spec_slack(spec)  # before the run is loaded
     path = Path(spec.argument)
     if not path.exists():
         raise ValueError(f"law {spec.text!r}: run {spec.argument!r} does not exist")
-    if slack is None:
-        return SB3Law.from_path(path, name=spec.label())
-    from guidance.laws.min_time_touchdown import MinimumTimeHandover, MinimumTimeTouchdownLaw
-
-    try:
-        min_time = MinimumTimeTouchdownLaw(context.scenario)
-    except ValueError as exc:
-        raise ValueError(f"law {spec.text!r}: {exc}") from None
-    return MinimumTimeHandover(SB3Law.from_path(path, name=spec.label()), min_time, slack,
-                               name=spec.label())
+    return with_handover(SB3Law.from_path(path, name=spec.label()), slack, spec, context)
 
 
 def run_env_kwargs(spec) -> dict | None:

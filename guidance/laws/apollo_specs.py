@@ -106,9 +106,12 @@ def _no_argument(spec) -> None:
 
 
 def _augmented(spec, default_k_r: float, context) -> GuidanceLaw:
+    from guidance.laws.min_time_touchdown import spec_slack, with_handover
+
     spec.require_known_options(_OPTIONS)
     _no_argument(spec)
     try:
+        slack = spec_slack(spec)  # before the minimum-time law's first solve
         law = AugmentedApolloLaw(
             k_r=spec.option("kr", float, default_k_r),
             tgo_margin=spec.option("tgo_margin", float, 0.0),
@@ -119,18 +122,7 @@ def _augmented(spec, default_k_r: float, context) -> GuidanceLaw:
             aim_above_m=spec.option("aim", float, 0.0),
             phases=_phases(spec),
             name=spec.text or spec.name)
-        slack = spec.option("min_time_slack", float, None)
-        if slack is not None:
-            from guidance.laws.min_time_touchdown import (
-                MinimumTimeHandover,
-                MinimumTimeTouchdownLaw,
-                check_slack,
-            )
-
-            slack = check_slack(slack)  # before the minimum-time law's first solve
-            law = MinimumTimeHandover(law, MinimumTimeTouchdownLaw(context.scenario), slack,
-                                      name=spec.text)
-        return law
+        return with_handover(law, slack, spec, context)
     except ValueError as exc:
         msg = str(exc)  # the spec's own checks name the law already
         raise ValueError(msg if msg.startswith("law ") else

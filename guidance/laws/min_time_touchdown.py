@@ -61,7 +61,8 @@ from guidance.laws.engine_estimate import ThrustScaleEstimator
 
 __all__ = ["MinimumTimeTouchdownLaw", "MinimumTimeHandover", "DEFAULT_RESERVE",
            "DEFAULT_STOP_ABOVE_M", "DEFAULT_SWITCH_TGO_S", "DEFAULT_SWITCH_M",
-           "DEFAULT_MIN_TIME_SLACK_M", "check_slack", "min_time_from_spec"]
+           "DEFAULT_MIN_TIME_SLACK_M", "check_slack", "spec_slack", "with_handover",
+           "min_time_from_spec"]
 
 #: fraction of the measured engine kept in reserve (module docstring)
 DEFAULT_RESERVE = 0.01
@@ -291,6 +292,32 @@ class MinimumTimeHandover(GuidanceLaw):
         """Both laws' engine estimates record the throttles ``actions`` gave."""
         for law in (self.law, self.min_time):
             law.flown(nav, actions)
+
+
+def spec_slack(spec) -> float | None:
+    """A law spec's ``min_time_slack`` option (m), checked before anything is built or loaded
+    (:func:`check_slack`); None where the spec has none. ``ValueError`` naming the law."""
+    slack = spec.option("min_time_slack", float, None)
+    if slack is None:
+        return None
+    try:
+        return check_slack(slack)
+    except ValueError as exc:
+        raise ValueError(f"law {spec.text!r}: {exc}") from None
+
+
+def with_handover(law: GuidanceLaw, slack_m: float | None, spec, context) -> GuidanceLaw:
+    """``law`` itself (``slack_m`` None), or ``law`` inside :class:`MinimumTimeHandover` on
+    the context's scenario, named ``law.name``: the one way a spec's ``min_time_slack``
+    (:func:`spec_slack`) is flown, explicit and learned laws alike. ``ValueError`` naming the
+    law ``spec`` where the scenario does not land on its site."""
+    if slack_m is None:
+        return law
+    try:
+        min_time = MinimumTimeTouchdownLaw(context.scenario)
+    except ValueError as exc:
+        raise ValueError(f"law {spec.text!r}: {exc}") from None
+    return MinimumTimeHandover(law, min_time, slack_m, name=law.name)
 
 
 def min_time_from_spec(spec, context) -> GuidanceLaw:
